@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# Builds tests/consumer against a colcon install space and runs it; then asks for an
+# incompatible major version of ropes_nn and expects CMake's version message.
+# Usage: consumer_test.sh INSTALL_DIR WORK_DIR
+set -euo pipefail
+install_dir=$1
+work=$2
+here=$(cd "$(dirname "$0")" && pwd)
+[ -f "$install_dir/setup.bash" ] || { echo "no colcon install space at $install_dir" >&2; exit 1; }
+rm -rf "$work" && mkdir -p "$work"
+
+# what a user of another workspace does: source the install space, find_package
+set +u
+# shellcheck disable=SC1091
+. "$install_dir/setup.bash"
+set -u
+
+echo "== consumer: find_package(ropes_nn 0.1) and find_package(ropes_eval 0.1)"
+cmake -S "$here/consumer" -B "$work/ok" -DCMAKE_BUILD_TYPE=Release > "$work/ok.log" 2>&1 \
+  || { cat "$work/ok.log"; exit 1; }
+cmake --build "$work/ok" > "$work/ok-build.log" 2>&1 || { cat "$work/ok-build.log"; exit 1; }
+"$work/ok/ropes_consumer"
+
+echo "== consumer: find_package(ropes_nn 1.0) must fail with CMake's version message"
+if cmake -S "$here/consumer" -B "$work/bad" -DROPES_NN_VERSION=1.0 > "$work/bad.log" 2>&1; then
+  cat "$work/bad.log"
+  echo "FAIL: configuring with ropes_nn 1.0 succeeded" >&2
+  exit 1
+fi
+expected='Could not find a configuration file for package "ropes_nn" that is compatible'
+expected+=' with requested version "1.0"'
+if ! tr -s ' \n' ' ' < "$work/bad.log" | grep -qF "$expected"; then
+  cat "$work/bad.log"
+  echo "FAIL: no version message '$expected'" >&2
+  exit 1
+fi
+grep -A3 "Could not find a configuration file" "$work/bad.log" | head -6
+echo "PASS"

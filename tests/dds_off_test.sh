@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# Builds and tests the whole workspace with -DROPES_WITH_DDS=OFF in a scratch build and
+# install space: every package but ropes_msgs must build and pass, and ropes_msgs must
+# install a config file that tells a consumer it was built without Fast DDS.
+# Usage: dds_off_test.sh WORKSPACE
+set -euo pipefail
+workspace=$(cd "$1" && pwd)
+scratch=$(mktemp -d)
+trap 'rm -rf "$scratch"' EXIT
+cd "$workspace"
+colcon --log-base "$scratch/log" build --build-base "$scratch/build" --install-base "$scratch/install" \
+  --cmake-args -DCMAKE_BUILD_TYPE=Release -DROPES_WITH_DDS=OFF --no-warn-unused-cli
+grep -q "ROPES_WITH_DDS:STRING=OFF" "$scratch/build/ropes_msgs/CMakeCache.txt"
+if [ -e "$scratch/install/ropes_msgs/include/ropes_msgs" ]; then
+  echo "FAIL: ropes_msgs installed message headers with ROPES_WITH_DDS=OFF" >&2
+  exit 1
+fi
+colcon --log-base "$scratch/log" test --build-base "$scratch/build" --install-base "$scratch/install"
+colcon --log-base "$scratch/log" test-result --test-result-base "$scratch/build" --verbose
+# a consumer asking for ropes_msgs gets the reason
+mkdir -p "$scratch/consumer"
+cat > "$scratch/consumer/CMakeLists.txt" <<'CMAKE'
+cmake_minimum_required(VERSION 3.22)
+project(msgs_consumer NONE)
+find_package(ropes_msgs CONFIG REQUIRED)
+CMAKE
+if cmake -S "$scratch/consumer" -B "$scratch/consumer/build" \
+     -DCMAKE_PREFIX_PATH="$scratch/install/ropes_msgs" > "$scratch/consumer.log" 2>&1; then
+  echo "FAIL: find_package(ropes_msgs) succeeded on a build without DDS" >&2
+  exit 1
+fi
+tr -s ' \n' ' ' < "$scratch/consumer.log" | grep -q "was built without Fast DDS" \
+  || { cat "$scratch/consumer.log"; echo "FAIL: no 'built without Fast DDS' message" >&2; exit 1; }
+echo "PASS: every package builds and tests with ROPES_WITH_DDS=OFF"
