@@ -1,0 +1,88 @@
+#pragma once
+/// @file npy.hpp
+/// NumPy .npy files (format versions 1.0, 2.0 and 3.0): read and write little-endian,
+/// C-order arrays of u8, i32, i64, f32 and f64, the types the workspace's datasets and
+/// fixtures use. Anything else is refused with a message, never guessed at.
+
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace ropes::nn {
+
+/// Thrown for a file that is missing, unreadable, truncated, foreign or otherwise not what
+/// the reader accepts. The message names the file, what was found and what was expected.
+class FileFormatError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Element types of tensor files.
+enum class DType { kU8, kI32, kI64, kF32, kF64 };
+
+/// Bytes per element of `dtype`.
+std::size_t dtype_size(DType dtype);
+/// "u8", "i32", "i64", "f32" or "f64".
+const char* dtype_name(DType dtype);
+
+/// An n-dimensional array as stored in a file: element type, shape and the raw
+/// little-endian bytes in C (row-major) order. data.size() == element_count() * itemsize.
+struct NpyArray {
+  DType dtype = DType::kF32;
+  std::vector<std::int64_t> shape;  // empty shape: a scalar (one element)
+  std::vector<std::uint8_t> data;
+
+  /// Product of the shape (1 for a scalar).
+  std::int64_t element_count() const;
+};
+
+/// What a .npy header says, and where the data starts: enough to read rows of a large
+/// file without loading it whole.
+struct NpyHeader {
+  DType dtype = DType::kF32;
+  std::vector<std::int64_t> shape;
+  std::uint64_t data_offset = 0;  // bytes from the start of the file
+  std::uint64_t data_bytes = 0;   // element count * itemsize
+};
+
+/// Limits that keep a hostile file from making the reader allocate without bound.
+inline constexpr std::size_t kNpyMaxHeaderBytes = 1 << 20;  // numpy writes < 1 KiB
+inline constexpr int kNpyMaxRank = 32;                      // numpy's own limit
+
+/// Parses the header at the start of `bytes` (`size` bytes available). `name` is used in
+/// messages. Throws FileFormatError for a bad magic string, an unknown version, a header
+/// longer than kNpyMaxHeaderBytes or than `size`, a malformed dictionary, an unsupported
+/// descr (big-endian, other types), fortran_order True, a negative dimension or a byte
+/// count that overflows 64 bits.
+NpyHeader parse_npy_header(const std::uint8_t* bytes, std::size_t size, const std::string& name);
+
+/// Reads the header of the file at `path`, and checks that the file holds exactly the
+/// bytes the header promises.
+NpyHeader read_npy_header(const std::filesystem::path& path);
+
+/// Reads a whole .npy file. Throws FileFormatError as parse_npy_header does, and when the
+/// file is shorter or longer than its header says.
+NpyArray read_npy(const std::filesystem::path& path);
+
+/// Parses a whole .npy image held in memory.
+NpyArray parse_npy(const std::uint8_t* bytes, std::size_t size, const std::string& name);
+
+/// The bytes of a version 1.0 .npy file holding `array` (version 2.0 if the header needs
+/// more than 65535 bytes). Throws std::invalid_argument when data.size() does not match
+/// the shape or a dimension is negative.
+std::vector<std::uint8_t> serialize_npy(const NpyArray& array);
+
+/// Writes `array` to `path` through a temporary file in the same directory and a rename,
+/// so a reader never sees a half-written file. Throws FileFormatError when the file cannot
+/// be written (naming it and the system's reason), std::invalid_argument as serialize_npy.
+void write_npy(const std::filesystem::path& path, const NpyArray& array);
+
+/// Writes `bytes` to `path` through a temporary file and a rename (the files of this
+/// library all go through it). Throws FileFormatError naming the file on failure.
+void write_file_atomically(const std::filesystem::path& path, const std::uint8_t* bytes,
+                           std::size_t size);
+
+}  // namespace ropes::nn
