@@ -8,6 +8,7 @@ workspace=$(cd "$1" && pwd)
 scratch=$(mktemp -d)
 trap 'rm -rf "$scratch"' EXIT
 cd "$workspace"
+colcon() { /usr/bin/colcon "$@"; }  # Debian's colcon, whatever python3 comes first on PATH
 colcon --log-base "$scratch/log" build --build-base "$scratch/build" --install-base "$scratch/install" \
   --cmake-args -DCMAKE_BUILD_TYPE=Release -DROPES_WITH_DDS=OFF --no-warn-unused-cli
 grep -q "ROPES_WITH_DDS:STRING=OFF" "$scratch/build/ropes_msgs/CMakeCache.txt"

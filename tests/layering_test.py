@@ -68,7 +68,7 @@ def check(workspace, use_colcon=True):
     for a, b in sorted(REQUIRED - edges):
         problems.append(f"{a}/package.xml lacks the design's dependency on {b}")
     if use_colcon:
-        out = subprocess.run(["colcon", "graph", "--dot"], cwd=workspace, check=True,
+        out = subprocess.run(["/usr/bin/colcon", "graph", "--dot"], cwd=workspace, check=True,
                              capture_output=True, text=True).stdout
         graph = set(re.findall(r'"(ropes_\w+)" -> "(ropes_\w+)"', out))
         # colcon lists test dependencies too; the layering rule covers them the same way

@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -38,7 +39,8 @@ NpyArray make(DType dtype, std::vector<std::int64_t> shape, const std::vector<T>
   a.dtype = dtype;
   a.shape = std::move(shape);
   a.data.resize(v.size() * sizeof(T));
-  if (!v.empty()) std::memcpy(a.data.data(), v.data(), a.data.size());
+  if (!v.empty())
+    std::memcpy(a.data.data(), v.data(), a.data.size());
   return a;
 }
 
@@ -86,6 +88,29 @@ TEST(Npy, RoundTripsThroughAFileAndLeavesNoTemporary) {
     EXPECT_EQ(header.data_bytes, expected.data.size());
   }
   EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 6);
+  fs::remove_all(dir);
+}
+
+// numpy itself opens what write_npy wrote, with the dtype and values of the fixture it made
+TEST(NpyGolden, NumpyLoadsWhatWeWrite) {
+  if (std::system("/usr/bin/python3 -c 'import numpy' 2>/dev/null") != 0) {
+    GTEST_SKIP() << "Debian's python3-numpy is not installed (ci/install-deps installs it)";
+  }
+  const fs::path dir =
+      fs::temp_directory_path() / ("ropes_npy_numpy_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  for (const auto& [name, expected] : expected_arrays())
+    write_npy(dir / name, expected);
+  const std::string script =
+      "import numpy as np, pathlib, sys\n"
+      "ours, ref = pathlib.Path(sys.argv[1]), pathlib.Path(sys.argv[2])\n"
+      "for f in sorted(ref.glob('*.npy')):\n"
+      "    a, b = np.load(ours / f.name), np.load(f)\n"
+      "    assert a.dtype == b.dtype and a.shape == b.shape and np.array_equal(a, b), f.name\n"
+      "print('numpy read', len(list(ref.glob('*.npy'))), 'files')\n";
+  const std::string command =
+      "/usr/bin/python3 -c \"" + script + "\" '" + dir.string() + "' '" + kFixtures.string() + "'";
+  EXPECT_EQ(std::system(command.c_str()), 0) << command;
   fs::remove_all(dir);
 }
 

@@ -12,6 +12,7 @@ namespace {
 
 constexpr double kSqrt2 = 1.41421356237309504880;
 constexpr double kSqrt2Pi = 2.50662827463100050242;
+constexpr double kTailLimit = 37.0;  // standard deviations
 
 double phi(double x) {
   return std::exp(-0.5 * x * x) / kSqrt2Pi;
@@ -71,6 +72,8 @@ double standard_normal_quantile(double p) {
   // one Halley step on Phi(x) - p brings it to full double precision
   const double e = big_phi(x) - p;
   const double u = e * kSqrt2Pi * std::exp(0.5 * x * x);
+  if (!std::isfinite(u))
+    return x;  // |x| > 37.6: exp overflows, keep the approximation
   return x - u / (1.0 + 0.5 * x * u);
 }
 
@@ -99,7 +102,8 @@ TruncatedNormal::TruncatedNormal(double mu, double sigma, double lower, double u
   beta_ = beta;
   cdf_alpha_ = big_phi(alpha_);
   cdf_beta_ = big_phi(beta_);
-  if (!(cdf_beta_ - cdf_alpha_ > 0.0)) {
+  // beyond 37 sigma the normal density underflows: no mass double precision can represent
+  if (beta_ < -kTailLimit || !(cdf_beta_ - cdf_alpha_ > 0.0)) {
     throw_invalid("the interval holds no probability mass in double precision", mu, sigma, lower,
                   upper);
   }

@@ -121,6 +121,16 @@ TEST(TruncatedNormal, RejectsInvalidParametersWithTheValues) {
   expect_rejected(0, -0.5, -1, 1, "sigma=-0.5");
   expect_rejected(NAN, 1, -1, 1, "finite");
   expect_rejected(0, 1, 40, 41, "no probability mass");
+  // denormal mass only: the quantile's Halley step would overflow to NaN
+  expect_rejected(0, 1, -38, -37.9, "no probability mass");
+  expect_rejected(0, 1, 37.7, 38, "no probability mass");
+  // just inside the limit: finite draws inside the interval
+  const TruncatedNormal far(0, 1, 36.5, 36.9);
+  nn::PhiloxStream rng(3, 0);
+  for (int i = 0; i < 100; ++i) {
+    const double x = far.sample(rng);
+    EXPECT_TRUE(x >= 36.5 && x <= 36.9) << x;
+  }
   const TruncatedNormal tn(0, 1, -1, 1);
   EXPECT_THROW(tn.quantile(-0.1), std::invalid_argument);
   EXPECT_THROW(tn.quantile(NAN), std::invalid_argument);

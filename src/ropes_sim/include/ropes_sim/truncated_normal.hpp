@@ -19,8 +19,8 @@ namespace ropes::sim {
 class TruncatedNormal {
  public:
   /// Throws std::invalid_argument, naming the values, when a value is not finite, when
-  /// sigma <= 0, when lower >= upper, or when [lower, upper] holds no probability mass that
-  /// double precision can represent (more than ~37 sigma away from mu).
+  /// sigma <= 0, when lower >= upper, or when [lower, upper] lies entirely more than 37 sigma
+  /// from mu (where the normal density underflows double precision).
   TruncatedNormal(double mu, double sigma, double lower, double upper);
 
   /// One draw; advances `rng` by one uniform_double() (two 32-bit words).
