@@ -1,0 +1,97 @@
+#include "ropes_nn/gradcheck.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "ropes_nn/ops.hpp"
+#include "ropes_nn/philox.hpp"
+
+namespace ropes::nn {
+
+namespace {
+
+// <y, w> in double
+double project(const Tensor& y, const std::vector<float>& w) {
+  double s = 0.0;
+  const float* p = y.data();
+  for (std::size_t i = 0; i < w.size(); ++i)
+    s += static_cast<double>(p[i]) * w[i];
+  return s;
+}
+
+std::vector<float> projection_weights(const Shape& shape, std::uint64_t seed) {
+  PhiloxStream rng(seed, 0);
+  std::vector<float> w(static_cast<std::size_t>(shape.numel()));
+  for (float& v : w)
+    v = static_cast<float>(rng.normal());
+  return w;
+}
+
+}  // namespace
+
+GradCheckResult check_gradients(const TensorFunction& f, const std::vector<Tensor>& inputs,
+                                const GradCheckOptions& options) {
+  // fresh leaves holding the inputs' values
+  std::vector<Tensor> leaves;
+  for (const Tensor& x : inputs)
+    leaves.push_back(x.detach().set_requires_grad(true));
+
+  // analytic: grad of <f, w>
+  const Tensor y = f(leaves);
+  const std::vector<float> w = projection_weights(y.shape(), options.seed);
+  const Tensor weights(y.shape(), w);
+  const std::vector<Tensor> analytic = grad({y}, leaves, {weights}, false, true);
+
+  // numeric: central differences, one entry at a time (grad mode stays on: f may itself
+  // take gradients, as check_second_gradients' f does)
+  GradCheckResult result;
+  int failures = 0;
+  std::ostringstream report;
+  for (std::size_t k = 0; k < leaves.size(); ++k) {
+    Tensor x = leaves[k];
+    float* values = x.mutable_data();
+    const float* a = analytic[k].data();
+    for (std::int64_t i = 0; i < x.numel(); ++i) {
+      const float saved = values[i];
+      values[i] = saved + static_cast<float>(options.step);
+      const double up = project(f(leaves), w);
+      values[i] = saved - static_cast<float>(options.step);
+      const double down = project(f(leaves), w);
+      values[i] = saved;
+      // divide by the step the float values actually took
+      const double h = (static_cast<double>(saved + static_cast<float>(options.step)) -
+                        static_cast<double>(saved - static_cast<float>(options.step)));
+      const double numeric = (up - down) / h;
+      const double error = std::abs(a[i] - numeric);
+      result.max_abs_error = std::max(result.max_abs_error, error);
+      if (!(error <= options.abs_tolerance + options.rel_tolerance * std::abs(numeric))) {
+        result.ok = false;
+        if (failures++ < 10) {
+          report << "input " << k << " " << x.shape().str() << " element " << i << ": analytic "
+                 << a[i] << ", numeric " << numeric << "\n";
+        }
+      }
+    }
+  }
+  if (result.ok)
+    report << "max |analytic - numeric| = " << result.max_abs_error;
+  result.report = report.str();
+  return result;
+}
+
+GradCheckResult check_second_gradients(const TensorFunction& f, const std::vector<Tensor>& inputs,
+                                       const GradCheckOptions& options) {
+  const TensorFunction first_derivatives = [&f, &options](const std::vector<Tensor>& xs) {
+    const Tensor y = f(xs);
+    const Tensor w(y.shape(), projection_weights(y.shape(), options.seed + 1));
+    const std::vector<Tensor> g = grad({y}, xs, {w}, /*create_graph=*/true, /*allow_unused=*/true);
+    std::vector<Tensor> flat;
+    for (const Tensor& t : g)
+      flat.push_back(reshape(t, Shape{t.numel()}));
+    return flat.size() == 1 ? flat[0] : concat(flat, 0);
+  };
+  return check_gradients(first_derivatives, inputs, options);
+}
+
+}  // namespace ropes::nn

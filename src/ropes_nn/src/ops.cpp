@@ -1,0 +1,586 @@
+#include "ropes_nn/ops.hpp"
+
+#include <Eigen/Core>
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <stdexcept>
+#include <string>
+
+#include "tensor_impl.hpp"
+
+namespace ropes::nn {
+
+namespace {
+
+using Grads = std::vector<Tensor>;
+using BackwardFn = std::function<Grads(const std::vector<Tensor>& inputs, const Tensor& g)>;
+
+// a node whose backward is a function of the inputs and the output gradient; it must not
+// capture the output tensor (that would make a reference cycle)
+class FnNode final : public Node {
+ public:
+  FnNode(const char* name, BackwardFn fn) : name_(name), fn_(std::move(fn)) {}
+  const char* name() const override { return name_; }
+  std::vector<Tensor> backward(const Tensor& g) override { return fn_(inputs, g); }
+
+ private:
+  const char* name_;
+  BackwardFn fn_;
+};
+
+bool needs_graph(const std::vector<Tensor>& inputs) {
+  if (!grad_mode_enabled())
+    return false;
+  for (const Tensor& t : inputs) {
+    if (t.requires_grad())
+      return true;
+  }
+  return false;
+}
+
+// the result of an operation, with its backward recorded when needed
+Tensor record(const Shape& shape, std::vector<float> values, std::vector<Tensor> inputs,
+              const char* name, BackwardFn fn) {
+  std::shared_ptr<Node> node;
+  if (needs_graph(inputs))
+    node = std::make_shared<FnNode>(name, std::move(fn));
+  return make_op_result(shape, std::move(values), std::move(node), std::move(inputs));
+}
+
+void require_defined(const Tensor& t, const char* op, const char* arg) {
+  if (!t.defined())
+    throw std::invalid_argument(std::string(op) + ": " + arg + " is undefined");
+}
+
+// shapes right-aligned to rank 4
+using Dims4 = std::array<std::int64_t, 4>;
+Dims4 align4(const Shape& s) {
+  Dims4 d = {1, 1, 1, 1};
+  for (int i = 0; i < s.rank(); ++i)
+    d[static_cast<std::size_t>(4 - s.rank() + i)] = s[i];
+  return d;
+}
+// element strides of a contiguous `src` read as `out`: 0 along stretched dimensions
+Dims4 broadcast_strides(const Dims4& src, const Dims4& out) {
+  Dims4 strides{};
+  std::int64_t stride = 1;
+  for (int i = 3; i >= 0; --i) {
+    const auto k = static_cast<std::size_t>(i);
+    strides[k] = (src[k] == 1 && out[k] != 1) ? 0 : stride;
+    stride *= src[k];
+  }
+  return strides;
+}
+
+template <typename F>
+std::vector<float> broadcast_apply(const Tensor& a, const Tensor& b, const Shape& out, F f) {
+  const std::int64_t n = out.numel();
+  std::vector<float> r(static_cast<std::size_t>(n));
+  const float* pa = a.data();
+  const float* pb = b.data();
+  if (a.shape() == out && b.shape() == out) {
+    for (std::int64_t i = 0; i < n; ++i)
+      r[static_cast<std::size_t>(i)] = f(pa[i], pb[i]);
+    return r;
+  }
+  if (a.shape() == out && b.numel() == 1) {
+    const float vb = pb[0];
+    for (std::int64_t i = 0; i < n; ++i)
+      r[static_cast<std::size_t>(i)] = f(pa[i], vb);
+    return r;
+  }
+  const Dims4 od = align4(out);
+  const Dims4 sa = broadcast_strides(align4(a.shape()), od);
+  const Dims4 sb = broadcast_strides(align4(b.shape()), od);
+  std::size_t k = 0;
+  for (std::int64_t i0 = 0; i0 < od[0]; ++i0)
+    for (std::int64_t i1 = 0; i1 < od[1]; ++i1)
+      for (std::int64_t i2 = 0; i2 < od[2]; ++i2)
+        for (std::int64_t i3 = 0; i3 < od[3]; ++i3) {
+          const std::int64_t oa = i0 * sa[0] + i1 * sa[1] + i2 * sa[2] + i3 * sa[3];
+          const std::int64_t ob = i0 * sb[0] + i1 * sb[1] + i2 * sb[2] + i3 * sb[3];
+          r[k++] = f(pa[oa], pb[ob]);
+        }
+  return r;
+}
+
+template <typename F>
+Tensor unary(const Tensor& x, const char* name, F f, BackwardFn backward) {
+  require_defined(x, name, "x");
+  std::vector<float> r(static_cast<std::size_t>(x.numel()));
+  const float* p = x.data();
+  for (std::size_t i = 0; i < r.size(); ++i)
+    r[i] = f(p[i]);
+  return record(x.shape(), std::move(r), {x}, name, std::move(backward));
+}
+
+// a constant tensor (no graph) computed elementwise from x's values
+template <typename F>
+Tensor constant_map(const Tensor& x, F f) {
+  std::vector<float> r(static_cast<std::size_t>(x.numel()));
+  const float* p = x.data();
+  for (std::size_t i = 0; i < r.size(); ++i)
+    r[i] = f(p[i]);
+  return Tensor(x.shape(), std::move(r));
+}
+
+int normalize_axis(int axis, int rank, const char* op) {
+  const int a = axis < 0 ? axis + rank : axis;
+  if (a < 0 || a >= rank) {
+    throw std::invalid_argument(std::string(op) + ": axis " + std::to_string(axis) +
+                                " is out of range for rank " + std::to_string(rank));
+  }
+  return a;
+}
+
+// sums x over the aligned-rank-4 axes marked in `reduce`; the result has the rank-4 shape
+// with those axes set to 1 (row-major), accumulated in double
+std::vector<float> reduce_sum4(const Tensor& x, const std::array<bool, 4>& reduce,
+                               Dims4* out_dims) {
+  const Dims4 xd = align4(x.shape());
+  Dims4 od = xd;
+  for (std::size_t i = 0; i < 4; ++i) {
+    if (reduce[i])
+      od[i] = 1;
+  }
+  const Dims4 os = broadcast_strides(od, xd);
+  std::vector<double> acc(static_cast<std::size_t>(od[0] * od[1] * od[2] * od[3]), 0.0);
+  const float* p = x.data();
+  std::size_t k = 0;
+  for (std::int64_t i0 = 0; i0 < xd[0]; ++i0)
+    for (std::int64_t i1 = 0; i1 < xd[1]; ++i1)
+      for (std::int64_t i2 = 0; i2 < xd[2]; ++i2)
+        for (std::int64_t i3 = 0; i3 < xd[3]; ++i3) {
+          acc[static_cast<std::size_t>(i0 * os[0] + i1 * os[1] + i2 * os[2] + i3 * os[3])] +=
+              p[k++];
+        }
+  *out_dims = od;
+  return std::vector<float>(acc.begin(), acc.end());
+}
+
+}  // namespace
+
+// --- broadcasting -------------------------------------------------------------------------------
+
+Shape broadcast_shape(const Shape& a, const Shape& b, const char* op) {
+  const int rank = std::max(a.rank(), b.rank());
+  std::vector<std::int64_t> dims(static_cast<std::size_t>(rank));
+  for (int i = 0; i < rank; ++i) {
+    const std::int64_t da = i < rank - a.rank() ? 1 : a[i - (rank - a.rank())];
+    const std::int64_t db = i < rank - b.rank() ? 1 : b[i - (rank - b.rank())];
+    if (da != db && da != 1 && db != 1) {
+      throw std::invalid_argument(std::string(op) + ": shapes " + a.str() + " and " + b.str() +
+                                  " do not broadcast (dimension " + std::to_string(i) + ": " +
+                                  std::to_string(da) + " vs " + std::to_string(db) + ")");
+    }
+    dims[static_cast<std::size_t>(i)] = std::max(da, db);
+  }
+  return Shape(dims);
+}
+
+Tensor broadcast_to(const Tensor& x, const Shape& shape) {
+  require_defined(x, "broadcast_to", "x");
+  if (x.shape() == shape)
+    return x;
+  if (broadcast_shape(x.shape(), shape, "broadcast_to") != shape) {
+    throw std::invalid_argument("broadcast_to: shape " + x.shape().str() +
+                                " cannot be stretched to " + shape.str());
+  }
+  const Tensor zero = Tensor::scalar(0.0f);
+  std::vector<float> r = broadcast_apply(x, zero, shape, [](float v, float) { return v; });
+  const Shape from = x.shape();
+  return record(shape, std::move(r), {x}, "broadcast_to",
+                [from](const Grads&, const Tensor& g) { return Grads{sum_to(g, from)}; });
+}
+
+Tensor sum_to(const Tensor& x, const Shape& shape) {
+  require_defined(x, "sum_to", "x");
+  if (x.shape() == shape)
+    return x;
+  if (broadcast_shape(shape, x.shape(), "sum_to") != x.shape()) {
+    throw std::invalid_argument("sum_to: shape " + x.shape().str() + " is not a broadcast of " +
+                                shape.str());
+  }
+  const Dims4 xd = align4(x.shape());
+  const Dims4 td = align4(shape);
+  std::array<bool, 4> reduce{};
+  for (std::size_t i = 0; i < 4; ++i)
+    reduce[i] = td[i] == 1 && xd[i] != 1;
+  Dims4 od{};
+  std::vector<float> r = reduce_sum4(x, reduce, &od);
+  const Shape from = x.shape();
+  return record(shape, std::move(r), {x}, "sum_to",
+                [from](const Grads&, const Tensor& g) { return Grads{broadcast_to(g, from)}; });
+}
+
+// --- elementwise binary -------------------------------------------------------------------------
+
+Tensor add(const Tensor& a, const Tensor& b) {
+  require_defined(a, "add", "a");
+  require_defined(b, "add", "b");
+  const Shape out = broadcast_shape(a.shape(), b.shape(), "add");
+  return record(out, broadcast_apply(a, b, out, [](float x, float y) { return x + y; }), {a, b},
+                "add", [](const Grads& in, const Tensor& g) {
+                  return Grads{sum_to(g, in[0].shape()), sum_to(g, in[1].shape())};
+                });
+}
+
+Tensor sub(const Tensor& a, const Tensor& b) {
+  require_defined(a, "sub", "a");
+  require_defined(b, "sub", "b");
+  const Shape out = broadcast_shape(a.shape(), b.shape(), "sub");
+  return record(out, broadcast_apply(a, b, out, [](float x, float y) { return x - y; }), {a, b},
+                "sub", [](const Grads& in, const Tensor& g) {
+                  return Grads{sum_to(g, in[0].shape()), sum_to(neg(g), in[1].shape())};
+                });
+}
+
+Tensor mul(const Tensor& a, const Tensor& b) {
+  require_defined(a, "mul", "a");
+  require_defined(b, "mul", "b");
+  const Shape out = broadcast_shape(a.shape(), b.shape(), "mul");
+  return record(out, broadcast_apply(a, b, out, [](float x, float y) { return x * y; }), {a, b},
+                "mul", [](const Grads& in, const Tensor& g) {
+                  Grads r(2);
+                  if (in[0].requires_grad())
+                    r[0] = sum_to(mul(g, in[1]), in[0].shape());
+                  if (in[1].requires_grad())
+                    r[1] = sum_to(mul(g, in[0]), in[1].shape());
+                  return r;
+                });
+}
+
+Tensor div(const Tensor& a, const Tensor& b) {
+  require_defined(a, "div", "a");
+  require_defined(b, "div", "b");
+  const Shape out = broadcast_shape(a.shape(), b.shape(), "div");
+  return record(out, broadcast_apply(a, b, out, [](float x, float y) { return x / y; }), {a, b},
+                "div", [](const Grads& in, const Tensor& g) {
+                  Grads r(2);
+                  if (in[0].requires_grad())
+                    r[0] = sum_to(div(g, in[1]), in[0].shape());
+                  if (in[1].requires_grad()) {
+                    // d(a/b)/db = -a / b^2
+                    r[1] = sum_to(neg(div(mul(g, in[0]), square(in[1]))), in[1].shape());
+                  }
+                  return r;
+                });
+}
+
+Tensor add_scalar(const Tensor& x, float c) {
+  return unary(
+      x, "add_scalar", [c](float v) { return v + c; },
+      [](const Grads&, const Tensor& g) { return Grads{g}; });
+}
+
+Tensor mul_scalar(const Tensor& x, float c) {
+  return unary(
+      x, "mul_scalar", [c](float v) { return v * c; },
+      [c](const Grads&, const Tensor& g) { return Grads{mul_scalar(g, c)}; });
+}
+
+// --- elementwise unary --------------------------------------------------------------------------
+
+Tensor neg(const Tensor& x) {
+  return unary(
+      x, "neg", [](float v) { return -v; },
+      [](const Grads&, const Tensor& g) { return Grads{neg(g)}; });
+}
+
+Tensor exp(const Tensor& x) {
+  return unary(
+      x, "exp", [](float v) { return std::exp(v); },
+      [](const Grads& in, const Tensor& g) { return Grads{mul(g, exp(in[0]))}; });
+}
+
+Tensor log(const Tensor& x) {
+  return unary(
+      x, "log", [](float v) { return std::log(v); },
+      [](const Grads& in, const Tensor& g) { return Grads{div(g, in[0])}; });
+}
+
+Tensor log1p(const Tensor& x) {
+  return unary(
+      x, "log1p", [](float v) { return std::log1p(v); },
+      [](const Grads& in, const Tensor& g) { return Grads{div(g, add_scalar(in[0], 1.0f))}; });
+}
+
+Tensor sqrt(const Tensor& x) {
+  return unary(
+      x, "sqrt", [](float v) { return std::sqrt(v); },
+      [](const Grads& in, const Tensor& g) {
+        return Grads{div(mul_scalar(g, 0.5f), sqrt(in[0]))};
+      });
+}
+
+Tensor square(const Tensor& x) {
+  return unary(
+      x, "square", [](float v) { return v * v; },
+      [](const Grads& in, const Tensor& g) { return Grads{mul(g, mul_scalar(in[0], 2.0f))}; });
+}
+
+Tensor abs(const Tensor& x) {
+  return unary(
+      x, "abs", [](float v) { return std::abs(v); },
+      [](const Grads& in, const Tensor& g) {
+        // sign(x) is piecewise constant: a constant tensor, so second derivatives are 0
+        const Tensor sign = constant_map(
+            in[0], [](float v) { return v > 0.0f ? 1.0f : (v < 0.0f ? -1.0f : 0.0f); });
+        return Grads{mul(g, sign)};
+      });
+}
+
+Tensor relu(const Tensor& x) {
+  return unary(
+      x, "relu", [](float v) { return v > 0.0f ? v : 0.0f; },
+      [](const Grads& in, const Tensor& g) {
+        const Tensor step = constant_map(in[0], [](float v) { return v > 0.0f ? 1.0f : 0.0f; });
+        return Grads{mul(g, step)};
+      });
+}
+
+Tensor sigmoid(const Tensor& x) {
+  return unary(
+      x, "sigmoid",
+      [](float v) {
+        if (v >= 0.0f)
+          return 1.0f / (1.0f + std::exp(-v));
+        const float e = std::exp(v);
+        return e / (1.0f + e);
+      },
+      [](const Grads& in, const Tensor& g) {
+        // s' = s (1 - s), with s recomputed from the input (saving the output would make a
+        // reference cycle through the node)
+        const Tensor s = sigmoid(in[0]);
+        return Grads{mul(g, mul(s, add_scalar(neg(s), 1.0f)))};
+      });
+}
+
+// --- shape ----------------------------------------------------------------------------------
+
+Tensor reshape(const Tensor& x, const Shape& shape) {
+  require_defined(x, "reshape", "x");
+  if (shape.numel() != x.numel()) {
+    throw std::invalid_argument("reshape: cannot view shape " + x.shape().str() + " (" +
+                                std::to_string(x.numel()) + " elements) as " + shape.str() + " (" +
+                                std::to_string(shape.numel()) + ")");
+  }
+  const Shape from = x.shape();
+  std::shared_ptr<Node> node;
+  if (needs_graph({x})) {
+    node = std::make_shared<FnNode>(
+        "reshape", [from](const Grads&, const Tensor& g) { return Grads{reshape(g, from)}; });
+  }
+  return share_storage(x, shape, std::move(node));
+}
+
+Tensor flatten(const Tensor& x) {
+  require_defined(x, "flatten", "x");
+  if (x.rank() < 1)
+    throw std::invalid_argument("flatten: x is a scalar; expected rank >= 1");
+  return reshape(x, Shape{x.shape()[0], x.shape()[0] == 0 ? 0 : x.numel() / x.shape()[0]});
+}
+
+Tensor concat(const std::vector<Tensor>& xs, int axis) {
+  if (xs.empty())
+    throw std::invalid_argument("concat: no tensors");
+  for (const Tensor& t : xs)
+    require_defined(t, "concat", "an input");
+  const Shape& s0 = xs[0].shape();
+  const int ax = normalize_axis(axis, s0.rank(), "concat");
+  std::vector<std::int64_t> dims = s0.dims();
+  dims[static_cast<std::size_t>(ax)] = 0;
+  for (const Tensor& t : xs) {
+    bool ok = t.rank() == s0.rank();
+    for (int i = 0; ok && i < s0.rank(); ++i)
+      ok = i == ax || t.shape()[i] == s0[i];
+    if (!ok) {
+      throw std::invalid_argument("concat: shapes " + s0.str() + " and " + t.shape().str() +
+                                  " differ outside axis " + std::to_string(ax));
+    }
+    dims[static_cast<std::size_t>(ax)] += t.shape()[ax];
+  }
+  const Shape out(dims);
+  // outer: product of dims before the axis; each input contributes a run per outer index
+  std::int64_t outer = 1;
+  for (int i = 0; i < ax; ++i)
+    outer *= s0[i];
+  std::int64_t inner = 1;
+  for (int i = ax + 1; i < s0.rank(); ++i)
+    inner *= s0[i];
+  std::vector<float> r(static_cast<std::size_t>(out.numel()));
+  std::size_t k = 0;
+  for (std::int64_t o = 0; o < outer; ++o) {
+    for (const Tensor& t : xs) {
+      const std::int64_t run = t.shape()[ax] * inner;
+      std::copy_n(t.data() + o * run, run, r.begin() + static_cast<std::ptrdiff_t>(k));
+      k += static_cast<std::size_t>(run);
+    }
+  }
+  std::vector<std::int64_t> sizes;
+  for (const Tensor& t : xs)
+    sizes.push_back(t.shape()[ax]);
+  return record(out, std::move(r), xs, "concat", [ax, sizes](const Grads&, const Tensor& g) {
+    Grads parts;
+    std::int64_t begin = 0;
+    for (std::int64_t size : sizes) {
+      parts.push_back(slice(g, ax, begin, begin + size));
+      begin += size;
+    }
+    return parts;
+  });
+}
+
+Tensor slice(const Tensor& x, int axis, std::int64_t begin, std::int64_t end) {
+  require_defined(x, "slice", "x");
+  const int ax = normalize_axis(axis, x.rank(), "slice");
+  const std::int64_t size = x.shape()[ax];
+  if (begin < 0 || end > size || begin > end) {
+    throw std::invalid_argument("slice: [" + std::to_string(begin) + ", " + std::to_string(end) +
+                                ") is not inside axis " + std::to_string(ax) + " of shape " +
+                                x.shape().str());
+  }
+  std::vector<std::int64_t> dims = x.shape().dims();
+  dims[static_cast<std::size_t>(ax)] = end - begin;
+  const Shape out(dims);
+  std::int64_t outer = 1;
+  for (int i = 0; i < ax; ++i)
+    outer *= x.shape()[i];
+  std::int64_t inner = 1;
+  for (int i = ax + 1; i < x.rank(); ++i)
+    inner *= x.shape()[i];
+  std::vector<float> r(static_cast<std::size_t>(out.numel()));
+  const std::int64_t run = (end - begin) * inner;
+  for (std::int64_t o = 0; o < outer; ++o) {
+    std::copy_n(x.data() + o * size * inner + begin * inner, run,
+                r.begin() + static_cast<std::ptrdiff_t>(o * run));
+  }
+  return record(out, std::move(r), {x}, "slice",
+                [ax, begin, end, size](const Grads& in, const Tensor& g) {
+                  // the adjoint pads g with zeros back to the input's extent
+                  std::vector<Tensor> parts;
+                  std::vector<std::int64_t> pad = in[0].shape().dims();
+                  if (begin > 0) {
+                    pad[static_cast<std::size_t>(ax)] = begin;
+                    parts.push_back(Tensor::zeros(Shape(pad)));
+                  }
+                  parts.push_back(g);
+                  if (end < size) {
+                    pad[static_cast<std::size_t>(ax)] = size - end;
+                    parts.push_back(Tensor::zeros(Shape(pad)));
+                  }
+                  return Grads{parts.size() == 1 ? g : concat(parts, ax)};
+                });
+}
+
+Tensor transpose(const Tensor& x) {
+  require_defined(x, "transpose", "x");
+  if (x.rank() != 2) {
+    throw std::invalid_argument("transpose: shape " + x.shape().str() + "; expected rank 2");
+  }
+  const std::int64_t m = x.shape()[0], n = x.shape()[1];
+  std::vector<float> r(static_cast<std::size_t>(m * n));
+  const float* p = x.data();
+  for (std::int64_t i = 0; i < m; ++i)
+    for (std::int64_t j = 0; j < n; ++j)
+      r[static_cast<std::size_t>(j * m + i)] = p[i * n + j];
+  return record(Shape{n, m}, std::move(r), {x}, "transpose",
+                [](const Grads&, const Tensor& g) { return Grads{transpose(g)}; });
+}
+
+// --- reductions -----------------------------------------------------------------------------
+
+Tensor sum(const Tensor& x) {
+  require_defined(x, "sum", "x");
+  std::vector<int> axes(static_cast<std::size_t>(x.rank()));
+  for (int i = 0; i < x.rank(); ++i)
+    axes[static_cast<std::size_t>(i)] = i;
+  return sum(x, axes, false);
+}
+
+Tensor sum(const Tensor& x, const std::vector<int>& axes, bool keepdim) {
+  require_defined(x, "sum", "x");
+  const int rank = x.rank();
+  std::array<bool, 4> reduce{};
+  std::vector<std::int64_t> kept_dims = x.shape().dims(), out_dims;
+  for (int axis : axes) {
+    const int a = normalize_axis(axis, rank, "sum");
+    reduce[static_cast<std::size_t>(4 - rank + a)] = true;
+    kept_dims[static_cast<std::size_t>(a)] = 1;
+  }
+  for (int i = 0; i < rank; ++i) {
+    if (!reduce[static_cast<std::size_t>(4 - rank + i)])
+      out_dims.push_back(x.shape()[i]);
+  }
+  Dims4 od{};
+  std::vector<float> r = reduce_sum4(x, reduce, &od);
+  const Shape kept(kept_dims);
+  const Shape out = keepdim ? kept : Shape(out_dims);
+  const Shape from = x.shape();
+  return record(out, std::move(r), {x}, "sum", [kept, from](const Grads&, const Tensor& g) {
+    return Grads{broadcast_to(reshape(g, kept), from)};
+  });
+}
+
+Tensor mean(const Tensor& x) {
+  require_defined(x, "mean", "x");
+  return mul_scalar(sum(x), 1.0f / static_cast<float>(x.numel()));
+}
+
+Tensor mean(const Tensor& x, const std::vector<int>& axes, bool keepdim) {
+  require_defined(x, "mean", "x");
+  std::int64_t count = 1;
+  for (int axis : axes)
+    count *= x.shape()[normalize_axis(axis, x.rank(), "mean")];
+  return mul_scalar(sum(x, axes, keepdim), 1.0f / static_cast<float>(count));
+}
+
+// --- linear algebra -------------------------------------------------------------------------
+
+Tensor matmul(const Tensor& a, const Tensor& b) {
+  require_defined(a, "matmul", "a");
+  require_defined(b, "matmul", "b");
+  if (a.rank() != 2 || b.rank() != 2 || a.shape()[1] != b.shape()[0]) {
+    throw std::invalid_argument("matmul: shapes " + a.shape().str() + " and " + b.shape().str() +
+                                "; expected [m, k] and [k, n]");
+  }
+  using RowMajor = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  const std::int64_t m = a.shape()[0], k = a.shape()[1], n = b.shape()[1];
+  std::vector<float> r(static_cast<std::size_t>(m * n));
+  Eigen::Map<RowMajor>(r.data(), m, n).noalias() =
+      Eigen::Map<const RowMajor>(a.data(), m, k) * Eigen::Map<const RowMajor>(b.data(), k, n);
+  return record(Shape{m, n}, std::move(r), {a, b}, "matmul", [](const Grads& in, const Tensor& g) {
+    Grads grads(2);
+    if (in[0].requires_grad())
+      grads[0] = matmul(g, transpose(in[1]));
+    if (in[1].requires_grad())
+      grads[1] = matmul(transpose(in[0]), g);
+    return grads;
+  });
+}
+
+// --- losses ---------------------------------------------------------------------------------
+
+Tensor mse_loss(const Tensor& prediction, const Tensor& target) {
+  require_defined(prediction, "mse_loss", "prediction");
+  require_defined(target, "mse_loss", "target");
+  if (prediction.shape() != target.shape()) {
+    throw std::invalid_argument("mse_loss: prediction " + prediction.shape().str() +
+                                " and target " + target.shape().str() + " differ");
+  }
+  return mean(square(sub(prediction, target)));
+}
+
+Tensor bce_with_logits(const Tensor& logits, const Tensor& targets) {
+  require_defined(logits, "bce_with_logits", "logits");
+  require_defined(targets, "bce_with_logits", "targets");
+  if (logits.shape() != targets.shape()) {
+    throw std::invalid_argument("bce_with_logits: logits " + logits.shape().str() +
+                                " and targets " + targets.shape().str() + " differ");
+  }
+  return mean(add(sub(relu(logits), mul(logits, targets)), log1p(exp(neg(abs(logits))))));
+}
+
+}  // namespace ropes::nn

@@ -1,0 +1,335 @@
+#include "ropes_nn/tensor.hpp"
+
+#include <sstream>
+#include <stdexcept>
+#include <unordered_map>
+#include <unordered_set>
+
+#include "ropes_nn/ops.hpp"
+#include "tensor_impl.hpp"
+
+namespace ropes::nn {
+
+// --- Shape ----------------------------------------------------------------------------------
+
+Shape::Shape(std::initializer_list<std::int64_t> dims) : Shape(std::vector<std::int64_t>(dims)) {}
+
+Shape::Shape(const std::vector<std::int64_t>& dims) {
+  if (dims.size() > static_cast<std::size_t>(kMaxRank)) {
+    throw std::invalid_argument("Shape: rank " + std::to_string(dims.size()) +
+                                " is not supported; expected at most 4");
+  }
+  rank_ = static_cast<int>(dims.size());
+  for (int i = 0; i < rank_; ++i) {
+    if (dims[static_cast<std::size_t>(i)] < 0) {
+      throw std::invalid_argument("Shape: dimension " + std::to_string(i) + " is " +
+                                  std::to_string(dims[static_cast<std::size_t>(i)]) +
+                                  "; expected >= 0");
+    }
+    dims_[static_cast<std::size_t>(i)] = dims[static_cast<std::size_t>(i)];
+  }
+}
+
+std::int64_t Shape::numel() const {
+  std::int64_t n = 1;
+  for (int i = 0; i < rank_; ++i)
+    n *= dims_[static_cast<std::size_t>(i)];
+  return n;
+}
+
+std::string Shape::str() const {
+  std::ostringstream s;
+  s << '[';
+  for (int i = 0; i < rank_; ++i)
+    s << (i ? ", " : "") << dims_[static_cast<std::size_t>(i)];
+  s << ']';
+  return s.str();
+}
+
+bool Shape::operator==(const Shape& other) const {
+  if (rank_ != other.rank_)
+    return false;
+  for (int i = 0; i < rank_; ++i) {
+    if (dims_[static_cast<std::size_t>(i)] != other.dims_[static_cast<std::size_t>(i)]) {
+      return false;
+    }
+  }
+  return true;
+}
+
+// --- grad mode ------------------------------------------------------------------------------
+
+namespace {
+thread_local bool g_grad_mode = true;
+
+const TensorImpl& checked(const std::shared_ptr<TensorImpl>& impl, const char* what) {
+  if (!impl)
+    throw std::invalid_argument(std::string("Tensor::") + what + ": undefined tensor");
+  return *impl;
+}
+}  // namespace
+
+bool grad_mode_enabled() {
+  return g_grad_mode;
+}
+
+GradModeGuard::GradModeGuard(bool enabled) : previous_(g_grad_mode) {
+  g_grad_mode = enabled;
+}
+GradModeGuard::~GradModeGuard() {
+  g_grad_mode = previous_;
+}
+
+// --- Tensor ---------------------------------------------------------------------------------
+
+Tensor::Tensor(const Shape& shape, std::vector<float> values, bool requires_grad) {
+  if (static_cast<std::int64_t>(values.size()) != shape.numel()) {
+    throw std::invalid_argument("Tensor: " + std::to_string(values.size()) + " values for shape " +
+                                shape.str() + "; expected " + std::to_string(shape.numel()));
+  }
+  impl_ = std::make_shared<TensorImpl>();
+  impl_->shape = shape;
+  impl_->storage = std::make_shared<std::vector<float>>(std::move(values));
+  impl_->requires_grad = requires_grad;
+}
+
+Tensor Tensor::zeros(const Shape& shape, bool requires_grad) {
+  return full(shape, 0.0f, requires_grad);
+}
+Tensor Tensor::ones(const Shape& shape, bool requires_grad) {
+  return full(shape, 1.0f, requires_grad);
+}
+Tensor Tensor::full(const Shape& shape, float value, bool requires_grad) {
+  return Tensor(shape, std::vector<float>(static_cast<std::size_t>(shape.numel()), value),
+                requires_grad);
+}
+Tensor Tensor::scalar(float value, bool requires_grad) {
+  return Tensor(Shape{}, {value}, requires_grad);
+}
+
+const Shape& Tensor::shape() const {
+  return checked(impl_, "shape").shape;
+}
+const float* Tensor::data() const {
+  return checked(impl_, "data").storage->data();
+}
+float* Tensor::mutable_data() {
+  return checked(impl_, "mutable_data").storage->data();
+}
+std::vector<float> Tensor::to_vector() const {
+  const TensorImpl& impl = checked(impl_, "to_vector");
+  return *impl.storage;
+}
+
+float Tensor::item() const {
+  if (numel() != 1) {
+    throw std::invalid_argument("Tensor::item: shape " + shape().str() + " has " +
+                                std::to_string(numel()) + " elements; expected 1");
+  }
+  return data()[0];
+}
+
+bool Tensor::requires_grad() const {
+  return impl_ && impl_->requires_grad;
+}
+bool Tensor::is_leaf() const {
+  return checked(impl_, "is_leaf").grad_fn == nullptr;
+}
+const std::shared_ptr<Node>& Tensor::grad_fn() const {
+  return checked(impl_, "grad_fn").grad_fn;
+}
+
+Tensor& Tensor::set_requires_grad(bool value) {
+  if (checked(impl_, "set_requires_grad").grad_fn != nullptr) {
+    throw std::invalid_argument(
+        std::string("Tensor::set_requires_grad: the tensor was produced by ") +
+        impl_->grad_fn->name() + "; only leaves can be marked");
+  }
+  impl_->requires_grad = value;
+  return *this;
+}
+
+Tensor Tensor::grad() const {
+  return checked(impl_, "grad").grad;
+}
+void Tensor::zero_grad() {
+  checked(impl_, "zero_grad");
+  impl_->grad = Tensor();
+}
+
+Tensor Tensor::detach() const {
+  const TensorImpl& impl = checked(impl_, "detach");
+  return Tensor(impl.shape, *impl.storage);
+}
+
+void accumulate_leaf_grad(const Tensor& leaf, const Tensor& g) {
+  GradModeGuard no_grad(false);
+  leaf.impl_->grad = leaf.impl_->grad.defined() ? add(leaf.impl_->grad, g) : g.detach();
+}
+
+void Tensor::backward(const Tensor& grad_output) const {
+  checked(impl_, "backward");
+  // collect the leaves that need a gradient
+  std::vector<Tensor> leaves;
+  std::unordered_set<const TensorImpl*> seen;
+  std::vector<Tensor> stack = {*this};
+  while (!stack.empty()) {
+    Tensor t = stack.back();
+    stack.pop_back();
+    if (!t.requires_grad() || !seen.insert(t.id()).second)
+      continue;
+    if (t.is_leaf()) {
+      leaves.push_back(t);
+    } else {
+      for (const Tensor& in : t.grad_fn()->inputs)
+        stack.push_back(in);
+    }
+  }
+  if (leaves.empty()) {
+    throw std::invalid_argument(
+        "Tensor::backward: the tensor does not depend on any tensor "
+        "that requires grad");
+  }
+  const std::vector<Tensor> grads =
+      nn::grad({*this}, leaves,
+               grad_output.defined() ? std::vector<Tensor>{grad_output} : std::vector<Tensor>{});
+  for (std::size_t i = 0; i < leaves.size(); ++i)
+    accumulate_leaf_grad(leaves[i], grads[i]);
+}
+
+Tensor Tensor::reshape(const Shape& shape) const {
+  return nn::reshape(*this, shape);
+}
+
+Tensor share_storage(const Tensor& source, const Shape& shape, std::shared_ptr<Node> node) {
+  Tensor t;
+  t.impl_ = std::make_shared<TensorImpl>();
+  t.impl_->shape = shape;
+  t.impl_->storage = source.impl_->storage;
+  if (grad_mode_enabled() && source.requires_grad()) {
+    node->inputs = {source};
+    t.impl_->requires_grad = true;
+    t.impl_->grad_fn = std::move(node);
+  }
+  return t;
+}
+
+Tensor make_op_result(const Shape& shape, std::vector<float> values, std::shared_ptr<Node> node,
+                      std::vector<Tensor> inputs) {
+  Tensor t(shape, std::move(values));
+  if (!grad_mode_enabled())
+    return t;
+  for (const Tensor& in : inputs) {
+    if (in.requires_grad()) {
+      node->inputs = std::move(inputs);
+      t.impl_->requires_grad = true;
+      t.impl_->grad_fn = std::move(node);
+      break;
+    }
+  }
+  return t;
+}
+
+// --- the reverse sweep ----------------------------------------------------------------------
+
+std::vector<Tensor> grad(const std::vector<Tensor>& outputs, const std::vector<Tensor>& inputs,
+                         const std::vector<Tensor>& grad_outputs, bool create_graph,
+                         bool allow_unused) {
+  if (!grad_outputs.empty() && grad_outputs.size() != outputs.size()) {
+    throw std::invalid_argument("grad: " + std::to_string(grad_outputs.size()) +
+                                " grad_outputs for " + std::to_string(outputs.size()) +
+                                " outputs; expected one each, or none");
+  }
+  GradModeGuard mode(create_graph);
+
+  // seed the output gradients
+  std::unordered_map<const TensorImpl*, Tensor> grads;
+  for (std::size_t k = 0; k < outputs.size(); ++k) {
+    const Tensor& out = outputs[k];
+    Tensor seed;
+    if (grad_outputs.empty()) {
+      if (out.numel() != 1) {
+        throw std::invalid_argument("grad: output " + std::to_string(k) + " has shape " +
+                                    out.shape().str() +
+                                    "; give grad_outputs for outputs that "
+                                    "are not scalars");
+      }
+      seed = Tensor::ones(out.shape());
+    } else {
+      seed = grad_outputs[k];
+      if (seed.shape() != out.shape()) {
+        throw std::invalid_argument("grad: grad_outputs[" + std::to_string(k) + "] has shape " +
+                                    seed.shape().str() + " but output " + std::to_string(k) +
+                                    " has shape " + out.shape().str());
+      }
+    }
+    auto [it, fresh] = grads.emplace(out.id(), seed);
+    if (!fresh)
+      it->second = add(it->second, seed);
+  }
+
+  // topological order of the tensors that need a gradient (iterative depth-first search)
+  std::vector<Tensor> order;
+  std::unordered_set<const TensorImpl*> visited;
+  struct Frame {
+    Tensor tensor;
+    std::size_t next_input;
+  };
+  std::vector<Frame> stack;
+  for (const Tensor& out : outputs) {
+    if (!out.requires_grad() || !visited.insert(out.id()).second)
+      continue;
+    stack.push_back({out, 0});
+    while (!stack.empty()) {
+      Frame& top = stack.back();
+      const std::shared_ptr<Node>& node = top.tensor.grad_fn();
+      if (node && top.next_input < node->inputs.size()) {
+        const Tensor in = node->inputs[top.next_input++];
+        if (in.requires_grad() && visited.insert(in.id()).second)
+          stack.push_back({in, 0});
+      } else {
+        order.push_back(top.tensor);
+        stack.pop_back();
+      }
+    }
+  }
+
+  // walk from the outputs towards the leaves, pushing each gradient to the node's inputs
+  for (auto it = order.rbegin(); it != order.rend(); ++it) {
+    const Tensor& t = *it;
+    const std::shared_ptr<Node>& node = t.grad_fn();
+    if (!node)
+      continue;
+    auto found = grads.find(t.id());
+    if (found == grads.end())
+      continue;
+    const Tensor g = found->second;
+    const std::vector<Tensor> input_grads = node->backward(g);
+    for (std::size_t i = 0; i < node->inputs.size(); ++i) {
+      const Tensor& in = node->inputs[i];
+      if (!in.requires_grad() || !input_grads[i].defined())
+        continue;
+      auto [slot, fresh] = grads.emplace(in.id(), input_grads[i]);
+      if (!fresh)
+        slot->second = add(slot->second, input_grads[i]);
+    }
+  }
+
+  std::vector<Tensor> result;
+  result.reserve(inputs.size());
+  for (std::size_t i = 0; i < inputs.size(); ++i) {
+    auto found = grads.find(inputs[i].id());
+    if (found != grads.end()) {
+      result.push_back(found->second);
+    } else if (allow_unused) {
+      result.push_back(Tensor::zeros(inputs[i].shape()));
+    } else {
+      throw std::invalid_argument("grad: the outputs do not depend on inputs[" + std::to_string(i) +
+                                  "] (shape " + inputs[i].shape().str() +
+                                  "); pass allow_unused = true to get zeros");
+    }
+  }
+  return result;
+}
+
+}  // namespace ropes::nn

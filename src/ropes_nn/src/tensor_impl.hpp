@@ -1,0 +1,24 @@
+#pragma once
+// Private: what a Tensor handle points to.
+#include <memory>
+#include <vector>
+
+#include "ropes_nn/tensor.hpp"
+
+namespace ropes::nn {
+
+struct TensorImpl {
+  Shape shape;
+  std::shared_ptr<std::vector<float>> storage;  // shape.numel() floats, shared by reshape
+  bool requires_grad = false;
+  std::shared_ptr<Node> grad_fn;  // null for leaves
+  Tensor grad;                    // accumulated by Tensor::backward, leaves only
+};
+
+}  // namespace ropes::nn
+
+namespace ropes::nn {
+// A tensor that views `source`'s storage with another shape; records `node` (whose
+// backward must undo the view) when grad mode is on and `source` requires grad.
+Tensor share_storage(const Tensor& source, const Shape& shape, std::shared_ptr<Node> node);
+}  // namespace ropes::nn

@@ -1,0 +1,172 @@
+// Every operation against central finite differences (gradcheck.hpp), and the operations on
+// the AE2 path (conv, group norm, dense, relu, abs, mean, square and what they are built
+// from) also at second order.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "ropes_nn/gradcheck.hpp"
+#include "ropes_nn/ops.hpp"
+#include "ropes_nn/philox.hpp"
+
+namespace ropes::nn {
+namespace {
+
+// values in +-[0.2, 1.2]: away from the kinks of relu and abs at 0
+Tensor random_tensor(const Shape& shape, std::uint64_t stream) {
+  PhiloxStream rng(77, stream);
+  std::vector<float> v(static_cast<std::size_t>(shape.numel()));
+  for (float& x : v) {
+    const float magnitude = 0.2f + rng.uniform_float();
+    x = rng.uniform_float() < 0.5f ? -magnitude : magnitude;
+  }
+  return Tensor(shape, v);
+}
+Tensor positive_tensor(const Shape& shape, std::uint64_t stream) {
+  return abs(random_tensor(shape, stream)).detach();
+}
+
+void expect_first_order(const char* what, const TensorFunction& f, const std::vector<Tensor>& xs) {
+  const GradCheckResult r = check_gradients(f, xs);
+  EXPECT_TRUE(r.ok) << what << ":\n" << r.report;
+}
+void expect_second_order(const char* what, const TensorFunction& f, const std::vector<Tensor>& xs) {
+  const GradCheckResult r = check_second_gradients(f, xs);
+  EXPECT_TRUE(r.ok) << what << " (second order):\n" << r.report;
+}
+
+TEST(GradCheck, BinaryOpsWithBroadcasting) {
+  const Tensor a = random_tensor(Shape{2, 3, 4}, 1);
+  const Tensor b = random_tensor(Shape{3, 1}, 2);
+  const Tensor p = positive_tensor(Shape{1, 4}, 3);
+  using V = std::vector<Tensor>;
+  expect_first_order("add", [](const V& x) { return add(x[0], x[1]); }, {a, b});
+  expect_first_order("sub", [](const V& x) { return sub(x[0], x[1]); }, {a, b});
+  expect_first_order("mul", [](const V& x) { return mul(x[0], x[1]); }, {a, b});
+  expect_first_order("div", [](const V& x) { return div(x[0], x[1]); }, {a, p});
+  expect_first_order("add_scalar", [](const V& x) { return add_scalar(x[0], 0.5f); }, {a});
+  expect_first_order("mul_scalar", [](const V& x) { return mul_scalar(x[0], -1.5f); }, {a});
+}
+
+TEST(GradCheck, UnaryOps) {
+  const Tensor x = random_tensor(Shape{3, 5}, 4);
+  const Tensor p = positive_tensor(Shape{3, 5}, 5);
+  using V = std::vector<Tensor>;
+  expect_first_order("neg", [](const V& v) { return neg(v[0]); }, {x});
+  expect_first_order("exp", [](const V& v) { return exp(v[0]); }, {x});
+  expect_first_order("log", [](const V& v) { return log(v[0]); }, {p});
+  expect_first_order("log1p", [](const V& v) { return log1p(v[0]); }, {p});
+  expect_first_order("sqrt", [](const V& v) { return sqrt(v[0]); }, {p});
+  expect_first_order("square", [](const V& v) { return square(v[0]); }, {x});
+  expect_first_order("abs", [](const V& v) { return abs(v[0]); }, {x});
+  expect_first_order("relu", [](const V& v) { return relu(v[0]); }, {x});
+  expect_first_order("sigmoid", [](const V& v) { return sigmoid(v[0]); }, {x});
+}
+
+TEST(GradCheck, ShapeAndReductionOps) {
+  const Tensor x = random_tensor(Shape{2, 3, 2, 2}, 6);
+  const Tensor y = random_tensor(Shape{2, 1, 2, 2}, 7);
+  using V = std::vector<Tensor>;
+  expect_first_order("reshape", [](const V& v) { return reshape(v[0], Shape{6, 4}); }, {x});
+  expect_first_order("flatten", [](const V& v) { return flatten(v[0]); }, {x});
+  expect_first_order("broadcast_to",
+                     [](const V& v) {
+                       return broadcast_to(v[0], Shape{2, 3, 2, 2});
+                     },
+                     {y});
+  expect_first_order("sum_to", [](const V& v) { return sum_to(v[0], Shape{3, 1, 2}); }, {x});
+  expect_first_order("concat", [](const V& v) { return concat({v[0], v[1]}, 1); }, {x, y});
+  expect_first_order("slice", [](const V& v) { return slice(v[0], 1, 1, 3); }, {x});
+  expect_first_order("transpose",
+                     [](const V& v) {
+                       return transpose(reshape(v[0], Shape{4, 6}));
+                     },
+                     {x});
+  expect_first_order("sum", [](const V& v) { return sum(v[0]); }, {x});
+  expect_first_order("sum axes", [](const V& v) { return sum(v[0], {0, -1}); }, {x});
+  expect_first_order("sum keepdim", [](const V& v) { return sum(v[0], {1}, true); }, {x});
+  expect_first_order("mean", [](const V& v) { return mean(v[0]); }, {x});
+  expect_first_order("mean axes", [](const V& v) { return mean(v[0], {2, 3}); }, {x});
+}
+
+TEST(GradCheck, MatmulAndLosses) {
+  const Tensor a = random_tensor(Shape{3, 4}, 8);
+  const Tensor b = random_tensor(Shape{4, 2}, 9);
+  const Tensor t = random_tensor(Shape{3, 4}, 10);
+  const Tensor labels = Tensor(Shape{3, 4}, {0, 1, 1, 0, 1, 0, 0, 1, 0.5f, 1, 0, 0});
+  using V = std::vector<Tensor>;
+  expect_first_order("matmul", [](const V& v) { return matmul(v[0], v[1]); }, {a, b});
+  expect_first_order("mse_loss", [](const V& v) { return mse_loss(v[0], v[1]); }, {a, t});
+  expect_first_order(
+      "bce_with_logits",
+      [&labels](const V& v) { return bce_with_logits(mul_scalar(v[0], 4.0f), labels); }, {a});
+}
+
+// second order: what the score-sparsity loss differentiates through
+TEST(GradCheck, SecondOrderOnTheAe2PathOps) {
+  const Tensor a = random_tensor(Shape{3, 4}, 11);
+  const Tensor b = random_tensor(Shape{4, 2}, 12);
+  const Tensor c = random_tensor(Shape{1, 2}, 13);
+  using V = std::vector<Tensor>;
+  // dense: x W + b, with a nonlinearity so the second derivative is not trivially zero
+  expect_second_order("dense + square",
+                      [](const V& v) { return square(add(matmul(v[0], v[1]), v[2])); }, {a, b, c});
+  expect_second_order("relu * x", [](const V& v) { return mul(relu(v[0]), v[0]); }, {a});
+  expect_second_order("abs * x", [](const V& v) { return mul(abs(v[0]), v[0]); }, {a});
+  expect_second_order("mean of squares", [](const V& v) { return mean(square(v[0]), {1}); }, {a});
+  expect_second_order("sigmoid", [](const V& v) { return sigmoid(v[0]); }, {a});
+  expect_second_order("div and sqrt",
+                      [](const V& v) { return div(v[0], sqrt(add_scalar(square(v[1]), 1.0f))); },
+                      {a, random_tensor(Shape{3, 4}, 14)});
+  expect_second_order("broadcast, sum_to, concat, slice",
+                      [](const V& v) {
+                        const Tensor wide = mul(broadcast_to(v[1], Shape{3, 2}), v[1]);
+                        return slice(concat({square(v[0]), wide}, 1), 1, 2, 6);
+                      },
+                      {a, c});
+}
+
+// a deliberately wrong gradient must be caught: the checker itself can fail
+TEST(GradCheck, CatchesAWrongGradient) {
+  class WrongSquare final : public Node {
+   public:
+    const char* name() const override { return "wrong_square"; }
+    std::vector<Tensor> backward(const Tensor& g) override {
+      return {mul(g, inputs[0])};  // should be 2 x
+    }
+  };
+  const TensorFunction f = [](const std::vector<Tensor>& v) {
+    std::vector<float> out = v[0].to_vector();
+    for (float& x : out)
+      x *= x;
+    return make_op_result(v[0].shape(), out, std::make_shared<WrongSquare>(), {v[0]});
+  };
+  const GradCheckResult r = check_gradients(f, {random_tensor(Shape{4}, 15)});
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.report.find("analytic"), std::string::npos) << r.report;
+}
+
+// a first derivative that is right but not differentiable (a constant 2x) must fail at
+// second order while passing at first order
+TEST(GradCheck, CatchesAGradientThatIsNotDifferentiable) {
+  class DetachedSquare final : public Node {
+   public:
+    const char* name() const override { return "detached_square"; }
+    std::vector<Tensor> backward(const Tensor& g) override {
+      return {mul(g, mul_scalar(inputs[0], 2.0f).detach())};
+    }
+  };
+  const TensorFunction f = [](const std::vector<Tensor>& v) {
+    std::vector<float> out = v[0].to_vector();
+    for (float& x : out)
+      x *= x;
+    return make_op_result(v[0].shape(), out, std::make_shared<DetachedSquare>(), {v[0]});
+  };
+  const Tensor x = random_tensor(Shape{4}, 16);
+  EXPECT_TRUE(check_gradients(f, {x}).ok);
+  const GradCheckResult second = check_second_gradients(f, {x});
+  EXPECT_FALSE(second.ok) << second.report;
+}
+
+}  // namespace
+}  // namespace ropes::nn

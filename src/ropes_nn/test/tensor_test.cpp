@@ -1,0 +1,160 @@
+#include "ropes_nn/tensor.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "ropes_nn/ops.hpp"
+
+namespace ropes::nn {
+namespace {
+
+std::string error_of(const std::function<void()>& call) {
+  try {
+    call();
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(Tensor, HoldsValuesInRowMajorOrderAndSharesStorageWhenReshaped) {
+  const Tensor t(Shape{2, 3}, {1, 2, 3, 4, 5, 6});
+  EXPECT_EQ(t.shape(), (Shape{2, 3}));
+  EXPECT_EQ(t.numel(), 6);
+  EXPECT_EQ(t.shape().str(), "[2, 3]");
+  Tensor r = t.reshape(Shape{3, 2});
+  r.mutable_data()[0] = 10;
+  EXPECT_EQ(t.data()[0], 10);  // a view, not a copy
+  EXPECT_EQ(Tensor::scalar(2.5f).item(), 2.5f);
+  EXPECT_EQ(Shape().numel(), 1);
+}
+
+TEST(Tensor, RejectsBadShapesAndValuesWithBothSides) {
+  EXPECT_NE(error_of([] {
+              Tensor(Shape{2, 2}, {1, 2, 3});
+            }).find("3 values for shape [2, 2]"),
+            std::string::npos);
+  EXPECT_NE(error_of([] { Shape{1, 2, 3, 4, 5}; }).find("rank 5"), std::string::npos);
+  EXPECT_NE(error_of([] { Shape{2, -1}; }).find("dimension 1 is -1"), std::string::npos);
+  EXPECT_NE(error_of([] {
+              Tensor::zeros(Shape{2, 3}).item();
+            }).find("has 6 elements"),
+            std::string::npos);
+  EXPECT_NE(error_of([] {
+              add(Tensor::zeros(Shape{2, 3}), Tensor::zeros(Shape{4}));
+            }).find("add: shapes [2, 3] and [4] do not broadcast"),
+            std::string::npos);
+  EXPECT_NE(error_of([] {
+              matmul(Tensor::zeros(Shape{2, 3}), Tensor::zeros(Shape{2, 3}));
+            }).find("matmul: shapes [2, 3] and [2, 3]"),
+            std::string::npos);
+  EXPECT_NE(error_of([] {
+              reshape(Tensor::zeros(Shape{2, 3}), Shape{4});
+            }).find("cannot view shape [2, 3] (6 elements) as [4] (4)"),
+            std::string::npos);
+  EXPECT_NE(error_of([] {
+              sum(Tensor::zeros(Shape{2, 3}), {2});
+            }).find("axis 2 is out of range"),
+            std::string::npos);
+  EXPECT_NE(error_of([] {
+              slice(Tensor::zeros(Shape{2, 3}), 1, 2, 5);
+            }).find("[2, 5) is not inside axis 1"),
+            std::string::npos);
+}
+
+// forward values worked by hand
+TEST(Ops, ForwardValuesMatchHandComputation) {
+  const Tensor a(Shape{2, 3}, {1, 2, 3, 4, 5, 6});
+  const Tensor row(Shape{3}, {10, 20, 30});
+  const Tensor col(Shape{2, 1}, {100, 200});
+  EXPECT_EQ(add(a, row).to_vector(), (std::vector<float>{11, 22, 33, 14, 25, 36}));
+  EXPECT_EQ(mul(a, col).to_vector(), (std::vector<float>{100, 200, 300, 800, 1000, 1200}));
+  EXPECT_EQ(sum(a, {0}).to_vector(), (std::vector<float>{5, 7, 9}));
+  EXPECT_EQ(sum(a, {1}, true).shape(), (Shape{2, 1}));
+  EXPECT_EQ(sum(a, {1}, true).to_vector(), (std::vector<float>{6, 15}));
+  EXPECT_EQ(mean(a).item(), 3.5f);
+  EXPECT_EQ(sum_to(a, Shape{3}).to_vector(), (std::vector<float>{5, 7, 9}));
+  EXPECT_EQ(transpose(a).to_vector(), (std::vector<float>{1, 4, 2, 5, 3, 6}));
+  EXPECT_EQ(matmul(a, transpose(a)).to_vector(), (std::vector<float>{14, 32, 32, 77}));
+  EXPECT_EQ(concat({a, col}, 1).to_vector(), (std::vector<float>{1, 2, 3, 100, 4, 5, 6, 200}));
+  EXPECT_EQ(slice(a, 1, 1, 3).to_vector(), (std::vector<float>{2, 3, 5, 6}));
+  EXPECT_EQ(relu(Tensor(Shape{3}, {-1, 0, 2})).to_vector(), (std::vector<float>{0, 0, 2}));
+  EXPECT_FLOAT_EQ(sigmoid(Tensor::scalar(-100.0f)).item(), 3.7200760e-44f);  // no overflow
+  // BCE of logit 0 is log 2 for any target; of a large logit with target 1 about exp(-z)
+  EXPECT_FLOAT_EQ(bce_with_logits(Tensor::zeros(Shape{2}), Tensor(Shape{2}, {0, 1})).item(),
+                  std::log(2.0f));
+  EXPECT_NEAR(bce_with_logits(Tensor::scalar(30.0f), Tensor::scalar(1.0f)).item(), 9.4e-14, 1e-15);
+}
+
+TEST(Autograd, BackwardAccumulatesIntoLeavesAndGradReturnsWithoutTouchingThem) {
+  Tensor x = Tensor(Shape{2}, {1.0f, -2.0f}, true);
+  Tensor w = Tensor(Shape{2}, {3.0f, 4.0f}, true);
+  const Tensor loss = sum(mul(square(x), w));  // d/dx = 2 x w, d/dw = x^2
+  loss.backward();
+  EXPECT_EQ(x.grad().to_vector(), (std::vector<float>{6, -16}));
+  EXPECT_EQ(w.grad().to_vector(), (std::vector<float>{1, 4}));
+  loss.backward();  // accumulates
+  EXPECT_EQ(w.grad().to_vector(), (std::vector<float>{2, 8}));
+  w.zero_grad();
+  EXPECT_FALSE(w.grad().defined());
+  const std::vector<Tensor> g = grad({loss}, {x});
+  EXPECT_EQ(g[0].to_vector(), (std::vector<float>{6, -16}));
+  EXPECT_FALSE(g[0].requires_grad());  // no create_graph: a plain tensor
+}
+
+TEST(Autograd, CreateGraphGivesDifferentiableGradients) {
+  // f = x^3: f' = 3 x^2, f'' = 6 x, f''' = 6
+  const Tensor x = Tensor::scalar(2.0f, true);
+  const Tensor f = mul(square(x), x);
+  const Tensor d1 = grad({f}, {x}, {}, true)[0];
+  EXPECT_EQ(d1.item(), 12.0f);
+  ASSERT_TRUE(d1.requires_grad());
+  const Tensor d2 = grad({d1}, {x}, {}, true)[0];
+  EXPECT_EQ(d2.item(), 12.0f);
+  const Tensor d3 = grad({d2}, {x})[0];
+  EXPECT_EQ(d3.item(), 6.0f);
+}
+
+TEST(Autograd, SharedSubexpressionsAndRepeatedInputsSumTheirPaths) {
+  const Tensor x = Tensor::scalar(3.0f, true);
+  const Tensor y = mul(x, x);          // 2x
+  const Tensor z = add(y, mul(y, x));  // y + y x: dz/dx = 2x + 3x^2 = 33
+  EXPECT_EQ(grad({z}, {x})[0].item(), 33.0f);
+  // two outputs: d(y + z)/dx
+  EXPECT_EQ(grad({y, z}, {x})[0].item(), 39.0f);
+}
+
+TEST(Autograd, ReportsMisuseClearly) {
+  const Tensor x = Tensor(Shape{2}, {1, 2}, true);
+  const Tensor unrelated = Tensor(Shape{2}, {1, 2}, true);
+  const Tensor y = mul_scalar(x, 2.0f);
+  EXPECT_NE(error_of([&] { grad({y}, {x}); }).find("output 0 has shape [2]; give grad_outputs"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] { grad({sum(y)}, {unrelated}); }).find("do not depend on inputs[0]"),
+            std::string::npos);
+  EXPECT_EQ(grad({sum(y)}, {unrelated}, {}, false, true)[0].to_vector(),
+            (std::vector<float>{0, 0}));
+  EXPECT_NE(error_of([&] {
+              grad({y}, {x}, {Tensor::ones(Shape{3})});
+            }).find("grad_outputs[0] has shape [3] but output 0 has shape [2]"),
+            std::string::npos);
+  Tensor produced = y;
+  EXPECT_NE(error_of([&] { produced.set_requires_grad(false); }).find("produced by mul_scalar"),
+            std::string::npos);
+  EXPECT_NE(error_of([] { Tensor::ones(Shape{1}).backward(); }).find("does not depend"),
+            std::string::npos);
+}
+
+TEST(Autograd, NoGraphIsRecordedWithGradModeOff) {
+  const Tensor x = Tensor::scalar(1.0f, true);
+  GradModeGuard off(false);
+  const Tensor y = square(x);
+  EXPECT_FALSE(y.requires_grad());
+  EXPECT_EQ(y.grad_fn(), nullptr);
+}
+
+}  // namespace
+}  // namespace ropes::nn
