@@ -126,6 +126,49 @@ TEST(GradCheck, SecondOrderOnTheAe2PathOps) {
                       {a, c});
 }
 
+TEST(GradCheck, ConvolutionsAndGroupNorm) {
+  const Tensor x = random_tensor(Shape{2, 3, 5, 5}, 20);
+  const Tensor w3 = random_tensor(Shape{4, 3, 3, 3}, 21);
+  const Tensor w4 = random_tensor(Shape{4, 3, 4, 4}, 22);
+  const Tensor wt = random_tensor(Shape{3, 2, 4, 4}, 23);
+  const Tensor gamma = random_tensor(Shape{3}, 24);
+  const Tensor beta = random_tensor(Shape{3}, 25);
+  using V = std::vector<Tensor>;
+  expect_first_order("conv2d same", [](const V& v) { return conv2d(v[0], v[1]); }, {x, w3});
+  expect_first_order("conv2d stride 2 same (asymmetric pad)",
+                     [](const V& v) { return conv2d(v[0], v[1], 2); }, {x, w4});
+  expect_first_order("conv2d valid",
+                     [](const V& v) { return conv2d(v[0], v[1], 1, Padding2d::valid()); }, {x, w3});
+  expect_first_order(
+      "conv2d explicit",
+      [](const V& v) { return conv2d(v[0], v[1], 2, Padding2d::explicit_pads(0, 2, 1, 0)); },
+      {x, w3});
+  expect_first_order("conv_transpose2d k4 s2 same",
+                     [](const V& v) { return conv_transpose2d(v[0], v[1], 2); }, {x, wt});
+  expect_first_order("conv_transpose2d explicit",
+                     [](const V& v) {
+                       return conv_transpose2d(v[0], v[1], 2, Padding2d::explicit_pads(1, 0, 0, 2));
+                     },
+                     {x, wt});
+  expect_first_order("group_norm", [](const V& v) { return group_norm(v[0], 3, v[1], v[2]); },
+                     {x, gamma, beta});
+}
+
+TEST(GradCheck, SecondOrderThroughConvolutionsAndGroupNorm) {
+  const Tensor x = random_tensor(Shape{1, 2, 4, 4}, 30);
+  const Tensor w = random_tensor(Shape{2, 2, 3, 3}, 31);
+  const Tensor wt = random_tensor(Shape{2, 2, 4, 4}, 32);
+  const Tensor gamma = random_tensor(Shape{2}, 33);
+  const Tensor beta = random_tensor(Shape{2}, 34);
+  using V = std::vector<Tensor>;
+  // bilinear in (x, w): squared so that the second derivative in each alone is not zero
+  expect_second_order("conv2d", [](const V& v) { return square(conv2d(v[0], v[1], 2)); }, {x, w});
+  expect_second_order("conv_transpose2d",
+                      [](const V& v) { return square(conv_transpose2d(v[0], v[1], 2)); }, {x, wt});
+  expect_second_order("group_norm", [](const V& v) { return group_norm(v[0], 1, v[1], v[2]); },
+                      {x, gamma, beta});
+}
+
 // a deliberately wrong gradient must be caught: the checker itself can fail
 TEST(GradCheck, CatchesAWrongGradient) {
   class WrongSquare final : public Node {

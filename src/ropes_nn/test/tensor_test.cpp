@@ -89,6 +89,38 @@ TEST(Ops, ForwardValuesMatchHandComputation) {
   EXPECT_NEAR(bce_with_logits(Tensor::scalar(30.0f), Tensor::scalar(1.0f)).item(), 9.4e-14, 1e-15);
 }
 
+// conv shapes and a value worked by hand
+TEST(Ops, ConvolutionShapesFollowFlaxPaddingAndPytorchTransposeLayout) {
+  const Tensor x = Tensor::ones(Shape{1, 1, 5, 5});
+  EXPECT_EQ(conv2d(x, Tensor::ones(Shape{2, 1, 3, 3})).shape(), (Shape{1, 2, 5, 5}));
+  EXPECT_EQ(conv2d(x, Tensor::ones(Shape{2, 1, 4, 4}), 2).shape(), (Shape{1, 2, 3, 3}));
+  EXPECT_EQ(conv2d(x, Tensor::ones(Shape{2, 1, 3, 3}), 1, Padding2d::valid()).shape(),
+            (Shape{1, 2, 3, 3}));
+  EXPECT_EQ(
+      conv_transpose2d(Tensor::ones(Shape{1, 3, 8, 8}), Tensor::ones(Shape{3, 2, 4, 4}), 2).shape(),
+      (Shape{1, 2, 16, 16}));
+  // 3x3 ones kernel, SAME: a corner sees 4 pixels, an edge 6, the centre 9
+  const Tensor y = conv2d(x, Tensor::ones(Shape{1, 1, 3, 3}));
+  EXPECT_EQ(y.data()[0], 4.0f);
+  EXPECT_EQ(y.data()[1], 6.0f);
+  EXPECT_EQ(y.data()[12], 9.0f);
+  // stride 2, kernel 4, input 5: SAME pads 1 before and 2 after: first output sees 3x3 ones
+  EXPECT_EQ(conv2d(x, Tensor::ones(Shape{1, 1, 4, 4}), 2).data()[0], 9.0f);
+  EXPECT_NE(error_of([&] {
+              conv2d(x, Tensor::ones(Shape{1, 2, 3, 3}));
+            }).find("expected [N, C, H, W] and [O, C, KH, KW] with the same C"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] {
+              conv2d(x, Tensor::ones(Shape{1, 1, 6, 6}), 1, Padding2d::valid());
+            }).find("leaves no output"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] {
+              group_norm(Tensor::ones(Shape{1, 6, 2, 2}), 4, Tensor::ones(Shape{6}),
+                         Tensor::zeros(Shape{6}));
+            }).find("4 groups for 6 channels"),
+            std::string::npos);
+}
+
 TEST(Autograd, BackwardAccumulatesIntoLeavesAndGradReturnsWithoutTouchingThem) {
   Tensor x = Tensor(Shape{2}, {1.0f, -2.0f}, true);
   Tensor w = Tensor(Shape{2}, {3.0f, 4.0f}, true);

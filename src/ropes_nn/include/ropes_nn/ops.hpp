@@ -73,6 +73,50 @@ Tensor mean(const Tensor& x, const std::vector<int>& axes, bool keepdim = false)
 /// [m, k] x [k, n] -> [m, n].
 Tensor matmul(const Tensor& a, const Tensor& b);
 
+// --- convolution -------------------------------------------------------------------------------
+/// How a convolution pads its input, as Flax/JAX define the names:
+///   same():  output size ceil(input / stride); the total padding
+///            max((out - 1) * stride + kernel - input, 0) is split with the smaller half
+///            before (top/left) and the larger after (bottom/right).
+///   valid(): no padding; output size floor((input - kernel) / stride) + 1.
+///   explicit_pads(top, bottom, left, right).
+struct Padding2d {
+  enum class Mode { kSame, kValid, kExplicit };
+  Mode mode = Mode::kSame;
+  int top = 0, bottom = 0, left = 0, right = 0;  // kExplicit only
+  static Padding2d same() { return {Mode::kSame}; }
+  static Padding2d valid() { return {Mode::kValid}; }
+  static Padding2d explicit_pads(int top, int bottom, int left, int right) {
+    return {Mode::kExplicit, top, bottom, left, right};
+  }
+};
+
+/// 2-D cross-correlation (what deep-learning libraries call convolution).
+/// x: [N, C, H, W], w: [O, C, KH, KW] (PyTorch's layout) -> [N, O, OH, OW].
+/// No bias: add one with add(y, reshape(b, {1, O, 1, 1})). Throws std::invalid_argument for
+/// mismatched channels, a stride < 1, negative padding, or an empty output.
+Tensor conv2d(const Tensor& x, const Tensor& w, int stride = 1,
+              const Padding2d& padding = Padding2d::same());
+
+/// The transpose (adjoint) of conv2d with the same kernel, stride and padding: what a
+/// decoder uses to upsample. x: [N, Cin, H, W], w: [Cin, Cout, KH, KW] (PyTorch's
+/// ConvTranspose2d layout) -> [N, Cout, OH, OW].
+/// With Padding2d::same() the output is [H * stride, W * stride] and the padding is the
+/// one conv2d SAME would use from that size back to H (kernel 4, stride 2: one pixel each
+/// side, i.e. PyTorch's ConvTranspose2d(k=4, s=2, padding=1)). With valid() or explicit
+/// pads the output is (H - 1) * stride + KH - top - bottom (PyTorch's formula).
+Tensor conv_transpose2d(const Tensor& x, const Tensor& w, int stride = 1,
+                        const Padding2d& padding = Padding2d::same());
+
+// --- normalisation
+// --------------------------------------------------------------------------------
+/// Group normalisation of x [N, C, H, W] (or [N, C]) over `groups` groups of C / groups
+/// channels: (x - mean) / sqrt(var + eps) per sample and group, then gamma * . + beta per
+/// channel (gamma, beta: [C]). var is the biased variance. eps defaults to Flax's 1e-6
+/// (PyTorch's GroupNorm uses 1e-5). Built from differentiable operations.
+Tensor group_norm(const Tensor& x, int groups, const Tensor& gamma, const Tensor& beta,
+                  float eps = 1e-6f);
+
 // --- losses -------------------------------------------------------------------------------------
 /// mean((prediction - target)^2) over all elements.
 Tensor mse_loss(const Tensor& prediction, const Tensor& target);

@@ -1,0 +1,276 @@
+// conv2d and conv_transpose2d on three kernels that are closed under differentiation:
+//   y  = conv(x, w)                 forward
+//   dx = conv_input_grad(g, w)      the adjoint in x (also conv_transpose2d)
+//   dw = conv_weight_grad(x, g)     the adjoint in w
+// Each one's backward is written with the other two, so gradients of gradients work.
+#include <Eigen/Core>
+
+#include <algorithm>
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+#include "ropes_nn/ops.hpp"
+
+namespace ropes::nn {
+
+namespace {
+
+using RowMajor = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+// shapes and padding of one forward convolution x [n, c, h, w] * w [o, c, kh, kw]
+struct ConvGeometry {
+  std::int64_t n, c, h, w, o, kh, kw, oh, ow;
+  int stride;
+  int top, left;  // bottom/right padding only shows in oh, ow
+
+  std::int64_t patch() const { return c * kh * kw; }  // rows of the im2col matrix
+  std::int64_t pixels() const { return oh * ow; }     // its columns
+  Shape x_shape() const { return Shape{n, c, h, w}; }
+  Shape w_shape() const { return Shape{o, c, kh, kw}; }
+  Shape y_shape() const { return Shape{n, o, oh, ow}; }
+};
+
+// x [c, h, w] -> col [c*kh*kw, oh*ow], zeros where the window leaves the image
+void im2col(const float* x, const ConvGeometry& g, float* col) {
+  for (std::int64_t ch = 0; ch < g.c; ++ch)
+    for (std::int64_t ki = 0; ki < g.kh; ++ki)
+      for (std::int64_t kj = 0; kj < g.kw; ++kj) {
+        float* row = col + ((ch * g.kh + ki) * g.kw + kj) * g.pixels();
+        for (std::int64_t oy = 0; oy < g.oh; ++oy) {
+          const std::int64_t iy = oy * g.stride - g.top + ki;
+          for (std::int64_t ox = 0; ox < g.ow; ++ox) {
+            const std::int64_t ix = ox * g.stride - g.left + kj;
+            const bool inside = iy >= 0 && iy < g.h && ix >= 0 && ix < g.w;
+            row[oy * g.ow + ox] = inside ? x[(ch * g.h + iy) * g.w + ix] : 0.0f;
+          }
+        }
+      }
+}
+
+// the adjoint of im2col: col [c*kh*kw, oh*ow] summed back into x [c, h, w] (x zeroed first)
+void col2im(const float* col, const ConvGeometry& g, float* x) {
+  std::fill(x, x + g.c * g.h * g.w, 0.0f);
+  for (std::int64_t ch = 0; ch < g.c; ++ch)
+    for (std::int64_t ki = 0; ki < g.kh; ++ki)
+      for (std::int64_t kj = 0; kj < g.kw; ++kj) {
+        const float* row = col + ((ch * g.kh + ki) * g.kw + kj) * g.pixels();
+        for (std::int64_t oy = 0; oy < g.oh; ++oy) {
+          const std::int64_t iy = oy * g.stride - g.top + ki;
+          if (iy < 0 || iy >= g.h)
+            continue;
+          for (std::int64_t ox = 0; ox < g.ow; ++ox) {
+            const std::int64_t ix = ox * g.stride - g.left + kj;
+            if (ix >= 0 && ix < g.w)
+              x[(ch * g.h + iy) * g.w + ix] += row[oy * g.ow + ox];
+          }
+        }
+      }
+}
+
+std::vector<float> conv_forward(const float* x, const float* w, const ConvGeometry& g) {
+  std::vector<float> y(static_cast<std::size_t>(g.y_shape().numel()));
+  std::vector<float> col(static_cast<std::size_t>(g.patch() * g.pixels()));
+  const Eigen::Map<const RowMajor> wm(w, g.o, g.patch());
+  for (std::int64_t i = 0; i < g.n; ++i) {
+    im2col(x + i * g.c * g.h * g.w, g, col.data());
+    Eigen::Map<RowMajor>(y.data() + i * g.o * g.pixels(), g.o, g.pixels()).noalias() =
+        wm * Eigen::Map<const RowMajor>(col.data(), g.patch(), g.pixels());
+  }
+  return y;
+}
+
+std::vector<float> conv_input_grad(const float* gy, const float* w, const ConvGeometry& g) {
+  std::vector<float> dx(static_cast<std::size_t>(g.x_shape().numel()));
+  RowMajor col(g.patch(), g.pixels());
+  const Eigen::Map<const RowMajor> wm(w, g.o, g.patch());
+  for (std::int64_t i = 0; i < g.n; ++i) {
+    col.noalias() =
+        wm.transpose() * Eigen::Map<const RowMajor>(gy + i * g.o * g.pixels(), g.o, g.pixels());
+    col2im(col.data(), g, dx.data() + i * g.c * g.h * g.w);
+  }
+  return dx;
+}
+
+std::vector<float> conv_weight_grad(const float* x, const float* gy, const ConvGeometry& g) {
+  RowMajor dw = RowMajor::Zero(g.o, g.patch());
+  std::vector<float> col(static_cast<std::size_t>(g.patch() * g.pixels()));
+  for (std::int64_t i = 0; i < g.n; ++i) {
+    im2col(x + i * g.c * g.h * g.w, g, col.data());
+    dw.noalias() += Eigen::Map<const RowMajor>(gy + i * g.o * g.pixels(), g.o, g.pixels()) *
+                    Eigen::Map<const RowMajor>(col.data(), g.patch(), g.pixels()).transpose();
+  }
+  return std::vector<float>(dw.data(), dw.data() + dw.size());
+}
+
+Tensor conv_op(const Tensor& x, const Tensor& w, const ConvGeometry& g);
+Tensor conv_input_grad_op(const Tensor& gy, const Tensor& w, const ConvGeometry& g);
+Tensor conv_weight_grad_op(const Tensor& x, const Tensor& gy, const ConvGeometry& g);
+
+// nodes: each backward is written with the three ops
+class ConvNode final : public Node {
+ public:
+  explicit ConvNode(const ConvGeometry& g) : g_(g) {}
+  const char* name() const override { return "conv2d"; }
+  std::vector<Tensor> backward(const Tensor& gy) override {
+    std::vector<Tensor> r(2);
+    if (inputs[0].requires_grad())
+      r[0] = conv_input_grad_op(gy, inputs[1], g_);
+    if (inputs[1].requires_grad())
+      r[1] = conv_weight_grad_op(inputs[0], gy, g_);
+    return r;
+  }
+
+ private:
+  ConvGeometry g_;
+};
+
+class ConvInputGradNode final : public Node {
+ public:
+  explicit ConvInputGradNode(const ConvGeometry& g) : g_(g) {}
+  const char* name() const override { return "conv2d_input_grad"; }
+  // inputs: gy, w; the upstream gradient h has x's shape
+  std::vector<Tensor> backward(const Tensor& h) override {
+    std::vector<Tensor> r(2);
+    if (inputs[0].requires_grad())
+      r[0] = conv_op(h, inputs[1], g_);
+    if (inputs[1].requires_grad())
+      r[1] = conv_weight_grad_op(h, inputs[0], g_);
+    return r;
+  }
+
+ private:
+  ConvGeometry g_;
+};
+
+class ConvWeightGradNode final : public Node {
+ public:
+  explicit ConvWeightGradNode(const ConvGeometry& g) : g_(g) {}
+  const char* name() const override { return "conv2d_weight_grad"; }
+  // inputs: x, gy; the upstream gradient h has w's shape
+  std::vector<Tensor> backward(const Tensor& h) override {
+    std::vector<Tensor> r(2);
+    if (inputs[0].requires_grad())
+      r[0] = conv_input_grad_op(inputs[1], h, g_);
+    if (inputs[1].requires_grad())
+      r[1] = conv_op(inputs[0], h, g_);
+    return r;
+  }
+
+ private:
+  ConvGeometry g_;
+};
+
+Tensor conv_op(const Tensor& x, const Tensor& w, const ConvGeometry& g) {
+  return make_op_result(g.y_shape(), conv_forward(x.data(), w.data(), g),
+                        std::make_shared<ConvNode>(g), {x, w});
+}
+Tensor conv_input_grad_op(const Tensor& gy, const Tensor& w, const ConvGeometry& g) {
+  return make_op_result(g.x_shape(), conv_input_grad(gy.data(), w.data(), g),
+                        std::make_shared<ConvInputGradNode>(g), {gy, w});
+}
+Tensor conv_weight_grad_op(const Tensor& x, const Tensor& gy, const ConvGeometry& g) {
+  return make_op_result(g.w_shape(), conv_weight_grad(x.data(), gy.data(), g),
+                        std::make_shared<ConvWeightGradNode>(g), {x, gy});
+}
+
+[[noreturn]] void fail(const char* op, const std::string& what) {
+  throw std::invalid_argument(std::string(op) + ": " + what);
+}
+
+// padding of one spatial axis of a forward convolution from `in` pixels; returns the
+// output size, sets the padding before it
+std::int64_t resolve_axis(const char* op, const Padding2d& p, bool vertical, std::int64_t in,
+                          std::int64_t k, int stride, int* before) {
+  std::int64_t out = 0;
+  switch (p.mode) {
+    case Padding2d::Mode::kSame: {
+      out = (in + stride - 1) / stride;
+      const std::int64_t total = std::max<std::int64_t>((out - 1) * stride + k - in, 0);
+      *before = static_cast<int>(total / 2);
+      break;
+    }
+    case Padding2d::Mode::kValid:
+      *before = 0;
+      out = in >= k ? (in - k) / stride + 1 : 0;
+      break;
+    case Padding2d::Mode::kExplicit: {
+      const int a = vertical ? p.top : p.left;
+      const int b = vertical ? p.bottom : p.right;
+      if (a < 0 || b < 0)
+        fail(op, "padding must not be negative");
+      *before = a;
+      out = in + a + b >= k ? (in + a + b - k) / stride + 1 : 0;
+      break;
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+Tensor conv2d(const Tensor& x, const Tensor& w, int stride, const Padding2d& padding) {
+  if (!x.defined() || !w.defined())
+    fail("conv2d", "undefined input");
+  if (x.rank() != 4 || w.rank() != 4 || x.shape()[1] != w.shape()[1]) {
+    fail("conv2d", "x " + x.shape().str() + " and w " + w.shape().str() +
+                       "; expected [N, C, H, W] and [O, C, KH, KW] with the same C");
+  }
+  if (stride < 1)
+    fail("conv2d", "stride " + std::to_string(stride) + "; expected >= 1");
+  ConvGeometry g{x.shape()[0],
+                 x.shape()[1],
+                 x.shape()[2],
+                 x.shape()[3],
+                 w.shape()[0],
+                 w.shape()[2],
+                 w.shape()[3],
+                 0,
+                 0,
+                 stride,
+                 0,
+                 0};
+  g.oh = resolve_axis("conv2d", padding, true, g.h, g.kh, stride, &g.top);
+  g.ow = resolve_axis("conv2d", padding, false, g.w, g.kw, stride, &g.left);
+  if (g.oh <= 0 || g.ow <= 0) {
+    fail("conv2d", "a " + std::to_string(g.kh) + "x" + std::to_string(g.kw) +
+                       " kernel leaves no output on x " + x.shape().str());
+  }
+  return conv_op(x, w, g);
+}
+
+Tensor conv_transpose2d(const Tensor& x, const Tensor& w, int stride, const Padding2d& padding) {
+  if (!x.defined() || !w.defined())
+    fail("conv_transpose2d", "undefined input");
+  if (x.rank() != 4 || w.rank() != 4 || x.shape()[1] != w.shape()[0]) {
+    fail("conv_transpose2d", "x " + x.shape().str() + " and w " + w.shape().str() +
+                                 "; expected [N, Cin, H, W] and [Cin, Cout, KH, KW]");
+  }
+  if (stride < 1)
+    fail("conv_transpose2d", "stride " + std::to_string(stride) + "; expected >= 1");
+  // the forward convolution this is the adjoint of maps [oh, ow] back to x's [h, w]
+  const std::int64_t h = x.shape()[2], wd = x.shape()[3], kh = w.shape()[2], kw = w.shape()[3];
+  ConvGeometry g{x.shape()[0], w.shape()[1], 0, 0, w.shape()[0], kh, kw, h, wd, stride, 0, 0};
+  if (padding.mode == Padding2d::Mode::kSame) {
+    g.h = h * stride;
+    g.w = wd * stride;
+    g.top = static_cast<int>(std::max<std::int64_t>(kh - stride, 0) / 2);
+    g.left = static_cast<int>(std::max<std::int64_t>(kw - stride, 0) / 2);
+  } else {
+    const Padding2d p =
+        padding.mode == Padding2d::Mode::kValid ? Padding2d::explicit_pads(0, 0, 0, 0) : padding;
+    if (p.top < 0 || p.bottom < 0 || p.left < 0 || p.right < 0) {
+      fail("conv_transpose2d", "padding must not be negative");
+    }
+    g.h = (h - 1) * stride + kh - p.top - p.bottom;
+    g.w = (wd - 1) * stride + kw - p.left - p.right;
+    g.top = p.top;
+    g.left = p.left;
+  }
+  if (g.h <= 0 || g.w <= 0) {
+    fail("conv_transpose2d", "the padding leaves no output for x " + x.shape().str());
+  }
+  return conv_input_grad_op(x, w, g);
+}
+
+}  // namespace ropes::nn
