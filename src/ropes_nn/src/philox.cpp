@@ -1,6 +1,8 @@
 #include "ropes_nn/philox.hpp"
 
 #include <cmath>
+#include <stdexcept>
+#include <string>
 
 namespace ropes::nn {
 
@@ -83,6 +85,21 @@ double PhiloxStream::normal() {
   spare_normal_ = radius * std::sin(angle);
   has_spare_normal_ = true;
   return radius * std::cos(angle);
+}
+
+double PhiloxStream::truncated_normal(double lower, double upper) {
+  const double mass =
+      0.5 * (std::erfc(-upper / std::sqrt(2.0)) - std::erfc(-lower / std::sqrt(2.0)));
+  if (!(lower < upper) || !(mass >= 0.01)) {
+    throw std::invalid_argument("PhiloxStream::truncated_normal: [" + std::to_string(lower) + ", " +
+                                std::to_string(upper) +
+                                "] must be an interval holding >= 1% of N(0, 1)'s mass");
+  }
+  while (true) {
+    const double x = normal();
+    if (x >= lower && x <= upper)
+      return x;
+  }
 }
 
 }  // namespace ropes::nn

@@ -53,6 +53,12 @@ class PhiloxStream {
   /// Normals come in pairs: the second of a pair is kept and returned by the next call.
   double normal();
 
+  /// Standard normal conditioned on [lower, upper], by rejection from normal(): meant for
+  /// intervals holding a fair share of the mass, such as Flax's [-2, 2] initialiser.
+  /// Throws std::invalid_argument unless lower < upper and the interval holds at least 1 %
+  /// of the mass (ropes_sim's TruncatedNormal handles tails by inversion).
+  double truncated_normal(double lower, double upper);
+
   std::uint64_t seed() const { return seed_; }
   std::uint64_t stream() const { return stream_; }
   /// Number of 32-bit words drawn so far (normal() draws four words per pair).

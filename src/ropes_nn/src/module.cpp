@@ -1,0 +1,119 @@
+#include "ropes_nn/module.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "ropes_nn/ops.hpp"
+#include "ropes_nn/philox.hpp"
+
+namespace ropes::nn {
+
+namespace {
+// Flax's lecun_normal: variance_scaling(1, "fan_in", "truncated_normal"); the truncated
+// normal on [-2, 2] has std 0.87962566103423978, divided out so the result has 1 / fan_in
+constexpr double kTruncatedStd = 0.87962566103423978;
+}  // namespace
+
+std::uint64_t fnv1a64(const std::string& text) {
+  std::uint64_t h = 0xcbf29ce484222325ull;
+  for (unsigned char c : text) {
+    h ^= c;
+    h *= 0x100000001b3ull;
+  }
+  return h;
+}
+
+Tensor Module::register_parameter(const std::string& name, const Shape& shape,
+                                  const std::string& init, std::int64_t fan_in) {
+  if (init != "lecun_normal" && init != "zeros" && init != "ones") {
+    throw std::invalid_argument("Module::register_parameter: init '" + init + "' of '" + name +
+                                "'; expected lecun_normal, zeros or ones");
+  }
+  if (init == "lecun_normal" && fan_in <= 0) {
+    throw std::invalid_argument("Module::register_parameter: '" + name +
+                                "' is lecun_normal but has fan_in " + std::to_string(fan_in));
+  }
+  Tensor t = Tensor::full(shape, init == "ones" ? 1.0f : 0.0f, true);
+  parameters_.push_back({name, t, init, fan_in});
+  return t;
+}
+
+std::vector<std::pair<std::string, Tensor>> Module::named_parameters() const {
+  std::vector<std::pair<std::string, Tensor>> result;
+  for (const Parameter& p : parameters_)
+    result.emplace_back(p.name, p.value);
+  for (const auto& [child_name, child] : children_) {
+    for (auto& [name, t] : child->named_parameters()) {
+      result.emplace_back(child_name + "." + name, t);
+    }
+  }
+  return result;
+}
+
+std::vector<Tensor> Module::parameters() const {
+  std::vector<Tensor> result;
+  for (auto& [name, t] : named_parameters())
+    result.push_back(t);
+  return result;
+}
+
+std::int64_t Module::parameter_count() const {
+  std::int64_t n = 0;
+  for (const Tensor& t : parameters())
+    n += t.numel();
+  return n;
+}
+
+void Module::initialize(std::uint64_t seed) {
+  // own parameters, then children under their prefixes (names must match named_parameters)
+  struct Walker {
+    static void run(Module& m, const std::string& prefix, std::uint64_t seed) {
+      for (Parameter& p : m.parameters_) {
+        const std::string full = prefix + p.name;
+        float* v = p.value.mutable_data();
+        const std::int64_t n = p.value.numel();
+        if (p.init == "lecun_normal") {
+          PhiloxStream rng(seed, fnv1a64(full));
+          const double scale = std::sqrt(1.0 / static_cast<double>(p.fan_in)) / kTruncatedStd;
+          for (std::int64_t i = 0; i < n; ++i) {
+            v[i] = static_cast<float>(scale * rng.truncated_normal(-2.0, 2.0));
+          }
+        } else {
+          std::fill(v, v + n, p.init == "ones" ? 1.0f : 0.0f);
+        }
+      }
+      for (auto& [name, child] : m.children_)
+        run(*child, prefix + name + ".", seed);
+    }
+  };
+  Walker::run(*this, "", seed);
+}
+
+Sequential::Sequential(std::vector<std::shared_ptr<Module>> modules) {
+  for (auto& m : modules)
+    add(std::move(m));
+}
+
+Sequential& Sequential::add(std::shared_ptr<Module> module, std::string name) {
+  if (!module)
+    throw std::invalid_argument("Sequential::add: null module");
+  if (name.empty())
+    name = std::to_string(modules_.size());
+  register_module(name, module);
+  modules_.push_back(std::move(module));
+  return *this;
+}
+
+Tensor Sequential::forward(const Tensor& x) {
+  Tensor y = x;
+  for (auto& m : modules_)
+    y = m->forward(y);
+  return y;
+}
+
+Tensor ReLU::forward(const Tensor& x) {
+  return relu(x);
+}
+
+}  // namespace ropes::nn
