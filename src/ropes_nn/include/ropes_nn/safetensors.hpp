@@ -1,0 +1,59 @@
+#pragma once
+/// @file safetensors.hpp
+/// .safetensors files, as the format is published: an 8-byte little-endian header length N,
+/// N bytes of JSON ({"__metadata__": {string: string}, name: {"dtype", "shape",
+/// "data_offsets": [begin, end]}, ...}), then the tensors' raw little-endian bytes, offsets
+/// relative to the end of the header. Files written here open in Python's safetensors and
+/// PyTorch; reading checks everything the format promises before allocating.
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "ropes_nn/npy.hpp"
+
+namespace ropes::nn {
+
+class Module;
+
+/// Named arrays in file order, and the free-form string metadata.
+struct Safetensors {
+  std::vector<std::pair<std::string, NpyArray>> tensors;
+  std::map<std::string, std::string> metadata;
+
+  /// The array called `name`; FileFormatError-free lookup: nullptr when absent.
+  const NpyArray* find(const std::string& name) const;
+};
+
+/// Limits against hostile files.
+inline constexpr std::uint64_t kSafetensorsMaxHeaderBytes = 100u << 20;  // as the reference
+
+/// The bytes of a .safetensors file: tensors in the given order, the header padded with
+/// spaces to a multiple of 8 bytes. Throws std::invalid_argument for an empty or duplicate
+/// name, the reserved name "__metadata__", or an array whose data does not match its shape.
+std::vector<std::uint8_t> serialize_safetensors(const Safetensors& file);
+
+/// Parses a whole file image. `name` is used in messages. Throws FileFormatError for a
+/// truncated file, a header length over kSafetensorsMaxHeaderBytes or past the end, JSON
+/// that does not parse or is not an object, an entry without dtype/shape/data_offsets, a
+/// dtype other than U8, I32, I64, F32, F64, offsets that do not match the shape, overlap,
+/// leave gaps or do not end at the end of the file, and metadata values that are not strings.
+Safetensors parse_safetensors(const std::uint8_t* bytes, std::size_t size, const std::string& name);
+
+Safetensors read_safetensors(const std::filesystem::path& path);
+/// Writes through a temporary file and a rename.
+void write_safetensors(const std::filesystem::path& path, const Safetensors& file);
+
+/// Saves every parameter of `module` under its dotted name as F32, with `metadata`.
+void save_module(const Module& module, const std::filesystem::path& path,
+                 const std::map<std::string, std::string>& metadata = {});
+/// Loads the parameters of `module` from `path`. Throws FileFormatError, naming the file and
+/// the parameter, when a parameter is missing, has another shape or dtype, or the file holds
+/// a tensor the module does not have. Returns the file's metadata. Nothing is changed
+/// unless every parameter matches.
+std::map<std::string, std::string> load_module(Module& module, const std::filesystem::path& path);
+
+}  // namespace ropes::nn

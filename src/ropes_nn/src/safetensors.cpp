@@ -1,0 +1,279 @@
+#include "ropes_nn/safetensors.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <set>
+#include <stdexcept>
+
+#include "ropes_nn/module.hpp"
+
+namespace ropes::nn {
+
+namespace {
+
+using Json = nlohmann::json;
+
+[[noreturn]] void fail(const std::string& name, const std::string& what) {
+  throw FileFormatError(name + ": " + what);
+}
+
+const char* dtype_code(DType d) {
+  switch (d) {
+    case DType::kU8:
+      return "U8";
+    case DType::kI32:
+      return "I32";
+    case DType::kI64:
+      return "I64";
+    case DType::kF32:
+      return "F32";
+    case DType::kF64:
+      return "F64";
+  }
+  return "?";
+}
+
+bool parse_dtype(const std::string& code, DType* out) {
+  static const std::pair<const char*, DType> kCodes[] = {{"U8", DType::kU8},
+                                                         {"I32", DType::kI32},
+                                                         {"I64", DType::kI64},
+                                                         {"F32", DType::kF32},
+                                                         {"F64", DType::kF64}};
+  for (const auto& [text, dtype] : kCodes) {
+    if (code == text) {
+      *out = dtype;
+      return true;
+    }
+  }
+  return false;
+}
+
+// bytes of an array with this dtype and shape; false when it overflows
+bool byte_size(DType dtype, const std::vector<std::int64_t>& shape, std::uint64_t* out) {
+  std::uint64_t n = dtype_size(dtype);
+  for (std::int64_t d : shape) {
+    if (d < 0)
+      return false;
+    if (d != 0 && n > UINT64_MAX / static_cast<std::uint64_t>(d))
+      return false;
+    n *= static_cast<std::uint64_t>(d);
+  }
+  *out = n;
+  return true;
+}
+
+}  // namespace
+
+const NpyArray* Safetensors::find(const std::string& name) const {
+  for (const auto& [key, array] : tensors) {
+    if (key == name)
+      return &array;
+  }
+  return nullptr;
+}
+
+std::vector<std::uint8_t> serialize_safetensors(const Safetensors& file) {
+  Json header = Json::object();
+  if (!file.metadata.empty())
+    header["__metadata__"] = file.metadata;
+  std::set<std::string> names;
+  std::uint64_t offset = 0;
+  for (const auto& [name, array] : file.tensors) {
+    if (name.empty() || name == "__metadata__" || !names.insert(name).second) {
+      throw std::invalid_argument("serialize_safetensors: tensor name '" + name +
+                                  "' is empty, reserved or repeated");
+    }
+    std::uint64_t bytes = 0;
+    if (!byte_size(array.dtype, array.shape, &bytes) || bytes != array.data.size()) {
+      throw std::invalid_argument("serialize_safetensors: tensor '" + name + "' has " +
+                                  std::to_string(array.data.size()) +
+                                  " data bytes, which do not match its shape");
+    }
+    header[name] = {{"dtype", dtype_code(array.dtype)},
+                    {"shape", array.shape},
+                    {"data_offsets", {offset, offset + bytes}}};
+    offset += bytes;
+  }
+  std::string text = header.dump();
+  text.append((8 - text.size() % 8) % 8, ' ');
+  std::vector<std::uint8_t> out;
+  out.reserve(8 + text.size() + offset);
+  for (int i = 0; i < 8; ++i)
+    out.push_back(static_cast<std::uint8_t>(text.size() >> (8 * i)));
+  out.insert(out.end(), text.begin(), text.end());
+  for (const auto& [name, array] : file.tensors) {
+    out.insert(out.end(), array.data.begin(), array.data.end());
+  }
+  return out;
+}
+
+Safetensors parse_safetensors(const std::uint8_t* bytes, std::size_t size,
+                              const std::string& name) {
+  if (size < 8)
+    fail(name, "shorter than the 8-byte header length of a .safetensors file");
+  std::uint64_t header_length = 0;
+  for (int i = 0; i < 8; ++i)
+    header_length |= static_cast<std::uint64_t>(bytes[i]) << (8 * i);
+  if (header_length > kSafetensorsMaxHeaderBytes) {
+    fail(name, "header length " + std::to_string(header_length) + " exceeds the limit of " +
+                   std::to_string(kSafetensorsMaxHeaderBytes) +
+                   " bytes (not a .safetensors file?)");
+  }
+  if (header_length > size - 8) {
+    fail(name, "header length " + std::to_string(header_length) + " runs past the end of the " +
+                   std::to_string(size) + "-byte file");
+  }
+  const std::uint64_t data_size = size - 8 - header_length;
+
+  Json header;
+  try {
+    header = Json::parse(bytes + 8, bytes + 8 + header_length);
+  } catch (const Json::parse_error& e) {
+    fail(name, std::string("the header is not JSON: ") + e.what());
+  }
+  if (!header.is_object())
+    fail(name, "the header is not a JSON object");
+
+  Safetensors file;
+  // entries, checked, then sorted by offset to prove they tile the data exactly
+  struct Entry {
+    std::string key;
+    NpyArray array;
+    std::uint64_t begin, end;
+  };
+  std::vector<Entry> entries;
+  for (const auto& [key, value] : header.items()) {
+    if (key == "__metadata__") {
+      if (!value.is_object())
+        fail(name, "__metadata__ is not an object of strings");
+      for (const auto& [mk, mv] : value.items()) {
+        if (!mv.is_string())
+          fail(name, "__metadata__['" + mk + "'] is not a string");
+        file.metadata[mk] = mv.get<std::string>();
+      }
+      continue;
+    }
+    const std::string where = "tensor '" + key + "'";
+    if (!value.is_object() || !value.contains("dtype") || !value.contains("shape") ||
+        !value.contains("data_offsets")) {
+      fail(name, where + " lacks dtype, shape or data_offsets");
+    }
+    Entry e{key, {}, 0, 0};
+    const Json& dtype = value["dtype"];
+    if (!dtype.is_string() || !parse_dtype(dtype.get<std::string>(), &e.array.dtype)) {
+      fail(name, where + " has dtype " + dtype.dump() + "; expected U8, I32, I64, F32 or F64");
+    }
+    const Json& shape = value["shape"];
+    if (!shape.is_array() || shape.size() > static_cast<std::size_t>(kNpyMaxRank)) {
+      fail(name, where + " has shape " + shape.dump() + "; expected a list of at most " +
+                     std::to_string(kNpyMaxRank) + " sizes");
+    }
+    for (const Json& d : shape) {
+      if (!d.is_number_unsigned())
+        fail(name, where + " has shape " + shape.dump());
+      e.array.shape.push_back(
+          static_cast<std::int64_t>(std::min<std::uint64_t>(d.get<std::uint64_t>(), INT64_MAX)));
+    }
+    const Json& offsets = value["data_offsets"];
+    if (!offsets.is_array() || offsets.size() != 2 || !offsets[0].is_number_unsigned() ||
+        !offsets[1].is_number_unsigned()) {
+      fail(name, where + " has data_offsets " + offsets.dump() + "; expected [begin, end]");
+    }
+    e.begin = offsets[0].get<std::uint64_t>();
+    e.end = offsets[1].get<std::uint64_t>();
+    std::uint64_t nbytes = 0;
+    if (!byte_size(e.array.dtype, e.array.shape, &nbytes) || e.end < e.begin ||
+        e.end - e.begin != nbytes) {
+      fail(name, where + " has data_offsets " + offsets.dump() + " for a " +
+                     dtype.get<std::string>() + " " + shape.dump() + " tensor of " +
+                     std::to_string(nbytes) + " bytes");
+    }
+    entries.push_back(std::move(e));
+  }
+  std::sort(entries.begin(), entries.end(),
+            [](const Entry& a, const Entry& b) { return a.begin < b.begin; });
+  std::uint64_t expected = 0;
+  for (const Entry& e : entries) {
+    if (e.begin != expected) {
+      fail(name, "tensor '" + e.key + "' starts at byte " + std::to_string(e.begin) +
+                     "; expected " + std::to_string(expected) + " (offsets must tile the data)");
+    }
+    expected = e.end;
+  }
+  if (expected != data_size) {
+    fail(name, "the tensors cover " + std::to_string(expected) + " bytes but the file holds " +
+                   std::to_string(data_size) + " data bytes");
+  }
+  const std::uint8_t* data = bytes + 8 + header_length;
+  for (Entry& e : entries) {
+    e.array.data.assign(data + e.begin, data + e.end);
+    file.tensors.emplace_back(std::move(e.key), std::move(e.array));
+  }
+  return file;
+}
+
+Safetensors read_safetensors(const std::filesystem::path& path) {
+  const std::string name = path.string();
+  std::ifstream in(path, std::ios::binary);
+  if (!in)
+    fail(name, "cannot open");
+  const std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)),
+                                        std::istreambuf_iterator<char>());
+  return parse_safetensors(bytes.data(), bytes.size(), name);
+}
+
+void write_safetensors(const std::filesystem::path& path, const Safetensors& file) {
+  const std::vector<std::uint8_t> bytes = serialize_safetensors(file);
+  write_file_atomically(path, bytes.data(), bytes.size());
+}
+
+void save_module(const Module& module, const std::filesystem::path& path,
+                 const std::map<std::string, std::string>& metadata) {
+  Safetensors file;
+  file.metadata = metadata;
+  for (const auto& [name, t] : module.named_parameters()) {
+    NpyArray a;
+    a.dtype = DType::kF32;
+    a.shape = t.shape().dims();
+    a.data.resize(static_cast<std::size_t>(t.numel()) * sizeof(float));
+    if (!a.data.empty())
+      std::memcpy(a.data.data(), t.data(), a.data.size());
+    file.tensors.emplace_back(name, std::move(a));
+  }
+  write_safetensors(path, file);
+}
+
+std::map<std::string, std::string> load_module(Module& module, const std::filesystem::path& path) {
+  const std::string name = path.string();
+  const Safetensors file = read_safetensors(path);
+  auto params = module.named_parameters();
+  // check everything before writing anything
+  std::set<std::string> known;
+  for (const auto& [pname, t] : params) {
+    known.insert(pname);
+    const NpyArray* a = file.find(pname);
+    if (!a)
+      fail(name, "has no tensor for parameter '" + pname + "'");
+    if (a->dtype != DType::kF32 || a->shape != t.shape().dims()) {
+      fail(name, "parameter '" + pname + "' is " + dtype_name(a->dtype) + " " +
+                     Shape(a->shape.size() <= 4 ? a->shape : std::vector<std::int64_t>{}).str() +
+                     " in the file; the module has f32 " + t.shape().str());
+    }
+  }
+  for (const auto& [tname, array] : file.tensors) {
+    if (!known.count(tname))
+      fail(name, "holds tensor '" + tname + "', which the module does not have");
+  }
+  for (auto& [pname, t] : params) {
+    const NpyArray* a = file.find(pname);
+    if (!a->data.empty())
+      std::memcpy(t.mutable_data(), a->data.data(), a->data.size());
+  }
+  return file.metadata;
+}
+
+}  // namespace ropes::nn
