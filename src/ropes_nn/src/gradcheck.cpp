@@ -4,6 +4,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "ropes_nn/module.hpp"
 #include "ropes_nn/ops.hpp"
 #include "ropes_nn/philox.hpp"
 
@@ -92,6 +93,52 @@ GradCheckResult check_second_gradients(const TensorFunction& f, const std::vecto
     return flat.size() == 1 ? flat[0] : concat(flat, 0);
   };
   return check_gradients(first_derivatives, inputs, options);
+}
+
+GradCheckResult check_module_gradients(Module& module, const Tensor& x,
+                                       const GradCheckOptions& options) {
+  const auto named = module.named_parameters();
+  std::vector<Tensor> wrt = {x.detach().set_requires_grad(true)};
+  std::vector<std::string> names = {"input"};
+  for (const auto& [name, p] : named) {
+    wrt.push_back(p);
+    names.push_back(name);
+  }
+  const Tensor y = module.forward(wrt[0]);
+  const std::vector<float> w = projection_weights(y.shape(), options.seed);
+  const std::vector<Tensor> analytic =
+      grad({y}, wrt, {Tensor(y.shape(), w)}, false, /*allow_unused=*/true);
+
+  GradCheckResult result;
+  std::ostringstream report;
+  int failures = 0;
+  for (std::size_t k = 0; k < wrt.size(); ++k) {
+    float* values = wrt[k].mutable_data();
+    for (std::int64_t i = 0; i < wrt[k].numel(); ++i) {
+      const float saved = values[i];
+      const float up_value = saved + static_cast<float>(options.step);
+      const float down_value = saved - static_cast<float>(options.step);
+      values[i] = up_value;
+      const double up = project(module.forward(wrt[0]), w);
+      values[i] = down_value;
+      const double down = project(module.forward(wrt[0]), w);
+      values[i] = saved;
+      const double numeric = (up - down) / (static_cast<double>(up_value) - down_value);
+      const double error = std::abs(analytic[k].data()[i] - numeric);
+      result.max_abs_error = std::max(result.max_abs_error, error);
+      if (!(error <= options.abs_tolerance + options.rel_tolerance * std::abs(numeric))) {
+        result.ok = false;
+        if (failures++ < 10) {
+          report << names[k] << " element " << i << ": analytic " << analytic[k].data()[i]
+                 << ", numeric " << numeric << "\n";
+        }
+      }
+    }
+  }
+  if (result.ok)
+    report << "max |analytic - numeric| = " << result.max_abs_error;
+  result.report = report.str();
+  return result;
 }
 
 }  // namespace ropes::nn

@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "ropes_nn/gradcheck.hpp"
+#include "ropes_nn/layers.hpp"
 #include "ropes_nn/ops.hpp"
 #include "ropes_nn/philox.hpp"
 
@@ -167,6 +168,42 @@ TEST(GradCheck, SecondOrderThroughConvolutionsAndGroupNorm) {
                       [](const V& v) { return square(conv_transpose2d(v[0], v[1], 2)); }, {x, wt});
   expect_second_order("group_norm", [](const V& v) { return group_norm(v[0], 1, v[1], v[2]); },
                       {x, gamma, beta});
+}
+
+TEST(GradCheck, EveryModule) {
+  struct Case {
+    const char* what;
+    std::shared_ptr<Module> module;
+    Shape input;
+  };
+  auto seq = std::make_shared<Sequential>();
+  seq->add(std::make_shared<Conv2d>(2, 4, 3, 2)).add(std::make_shared<ReLU>());
+  seq->add(std::make_shared<ConvTranspose2d>(4, 2, 4, 2));
+  const std::vector<Case> cases = {
+      {"Conv2d", std::make_shared<Conv2d>(2, 3, 3, 2), Shape{2, 2, 5, 5}},
+      {"ConvTranspose2d", std::make_shared<ConvTranspose2d>(2, 3, 4, 2), Shape{2, 2, 3, 3}},
+      {"GroupNorm", std::make_shared<GroupNorm>(4, 2), Shape{2, 4, 3, 3}},
+      {"Dense", std::make_shared<Dense>(5, 3), Shape{4, 5}},
+      {"ReLU", std::make_shared<ReLU>(), Shape{3, 4}},
+      {"ResBlockGN", std::make_shared<ResBlockGN>(4, 2), Shape{1, 4, 4, 4}},
+      {"Sequential", seq, Shape{1, 2, 6, 6}},
+  };
+  std::uint64_t stream = 40;
+  for (const Case& c : cases) {
+    c.module->initialize(5);
+    // perturb the zero-initialised biases and unit scales so every term is exercised
+    for (Tensor p : c.module->parameters()) {
+      const Tensor noise = mul_scalar(random_tensor(p.shape(), stream++), 0.3f);
+      for (std::int64_t i = 0; i < p.numel(); ++i)
+        p.mutable_data()[i] += noise.data()[i];
+    }
+    // a small step: the blocks' ReLUs after group norm have kinks near many points
+    GradCheckOptions options;
+    options.step = 1e-3;
+    const GradCheckResult r =
+        check_module_gradients(*c.module, random_tensor(c.input, stream++), options);
+    EXPECT_TRUE(r.ok) << c.what << ":\n" << r.report;
+  }
 }
 
 // a deliberately wrong gradient must be caught: the checker itself can fail

@@ -41,4 +41,12 @@ GradCheckResult check_gradients(const TensorFunction& f, const std::vector<Tenso
 GradCheckResult check_second_gradients(const TensorFunction& f, const std::vector<Tensor>& inputs,
                                        const GradCheckOptions& options = {});
 
+class Module;
+
+/// Checks a module: d<module(x), w>/dx and d<module(x), w>/d(each parameter) against
+/// central differences, perturbing x and the parameters' storage in place (restored after).
+/// The report names the parameter by its dotted path.
+GradCheckResult check_module_gradients(Module& module, const Tensor& x,
+                                       const GradCheckOptions& options = {});
+
 }  // namespace ropes::nn
