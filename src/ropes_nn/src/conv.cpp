@@ -6,11 +6,14 @@
 #include <Eigen/Core>
 
 #include <algorithm>
+#include <atomic>
 #include <memory>
 #include <stdexcept>
 #include <string>
 
 #include "ropes_nn/ops.hpp"
+#include "ropes_nn/parallel.hpp"
+#include "tensor_impl.hpp"
 
 namespace ropes::nn {
 
@@ -68,39 +71,64 @@ void col2im(const float* col, const ConvGeometry& g, float* x) {
       }
 }
 
-std::vector<float> conv_forward(const float* x, const float* w, const ConvGeometry& g) {
-  std::vector<float> y(static_cast<std::size_t>(g.y_shape().numel()));
-  std::vector<float> col(static_cast<std::size_t>(g.patch() * g.pixels()));
+std::atomic<std::uint64_t> g_flops{0};
+
+void count_flops(const ConvGeometry& g) {
+  add_flops(static_cast<std::uint64_t>(2 * g.n * g.o * g.patch() * g.pixels()));
+}
+
+// each thread takes a contiguous run of images, with its own im2col buffer
+Buffer conv_forward(const float* x, const float* w, const ConvGeometry& g) {
+  count_flops(g);
+  Buffer y(static_cast<std::size_t>(g.y_shape().numel()));
   const Eigen::Map<const RowMajor> wm(w, g.o, g.patch());
-  for (std::int64_t i = 0; i < g.n; ++i) {
-    im2col(x + i * g.c * g.h * g.w, g, col.data());
-    Eigen::Map<RowMajor>(y.data() + i * g.o * g.pixels(), g.o, g.pixels()).noalias() =
-        wm * Eigen::Map<const RowMajor>(col.data(), g.patch(), g.pixels());
-  }
+  parallel_for(g.n, [&](int, std::int64_t begin, std::int64_t end) {
+    Buffer col(static_cast<std::size_t>(g.patch() * g.pixels()));
+    for (std::int64_t i = begin; i < end; ++i) {
+      im2col(x + i * g.c * g.h * g.w, g, col.data());
+      Eigen::Map<RowMajor>(y.data() + i * g.o * g.pixels(), g.o, g.pixels()).noalias() =
+          wm * Eigen::Map<const RowMajor>(col.data(), g.patch(), g.pixels());
+    }
+  });
   return y;
 }
 
-std::vector<float> conv_input_grad(const float* gy, const float* w, const ConvGeometry& g) {
-  std::vector<float> dx(static_cast<std::size_t>(g.x_shape().numel()));
-  RowMajor col(g.patch(), g.pixels());
+Buffer conv_input_grad(const float* gy, const float* w, const ConvGeometry& g) {
+  count_flops(g);
+  Buffer dx(static_cast<std::size_t>(g.x_shape().numel()));
   const Eigen::Map<const RowMajor> wm(w, g.o, g.patch());
-  for (std::int64_t i = 0; i < g.n; ++i) {
-    col.noalias() =
-        wm.transpose() * Eigen::Map<const RowMajor>(gy + i * g.o * g.pixels(), g.o, g.pixels());
-    col2im(col.data(), g, dx.data() + i * g.c * g.h * g.w);
-  }
+  parallel_for(g.n, [&](int, std::int64_t begin, std::int64_t end) {
+    Buffer col_buffer(static_cast<std::size_t>(g.patch() * g.pixels()));
+    Eigen::Map<RowMajor> col(col_buffer.data(), g.patch(), g.pixels());
+    for (std::int64_t i = begin; i < end; ++i) {
+      col.noalias() =
+          wm.transpose() * Eigen::Map<const RowMajor>(gy + i * g.o * g.pixels(), g.o, g.pixels());
+      col2im(col.data(), g, dx.data() + i * g.c * g.h * g.w);
+    }
+  });
   return dx;
 }
 
-std::vector<float> conv_weight_grad(const float* x, const float* gy, const ConvGeometry& g) {
-  RowMajor dw = RowMajor::Zero(g.o, g.patch());
-  std::vector<float> col(static_cast<std::size_t>(g.patch() * g.pixels()));
-  for (std::int64_t i = 0; i < g.n; ++i) {
-    im2col(x + i * g.c * g.h * g.w, g, col.data());
-    dw.noalias() += Eigen::Map<const RowMajor>(gy + i * g.o * g.pixels(), g.o, g.pixels()) *
-                    Eigen::Map<const RowMajor>(col.data(), g.patch(), g.pixels()).transpose();
+// per-chunk partial sums over the batch, added in chunk order (deterministic per thread count)
+Buffer conv_weight_grad(const float* x, const float* gy, const ConvGeometry& g) {
+  count_flops(g);
+  const int chunks = static_cast<int>(std::min<std::int64_t>(num_threads(), g.n));
+  const std::size_t w_size = static_cast<std::size_t>(g.o * g.patch());
+  std::vector<Buffer> partial(static_cast<std::size_t>(chunks), Buffer(w_size, 0.0f));
+  parallel_for(g.n, [&](int chunk, std::int64_t begin, std::int64_t end) {
+    Buffer col(static_cast<std::size_t>(g.patch() * g.pixels()));
+    Eigen::Map<RowMajor> dw(partial[static_cast<std::size_t>(chunk)].data(), g.o, g.patch());
+    for (std::int64_t i = begin; i < end; ++i) {
+      im2col(x + i * g.c * g.h * g.w, g, col.data());
+      dw.noalias() += Eigen::Map<const RowMajor>(gy + i * g.o * g.pixels(), g.o, g.pixels()) *
+                      Eigen::Map<const RowMajor>(col.data(), g.patch(), g.pixels()).transpose();
+    }
+  });
+  for (std::size_t c = 1; c < partial.size(); ++c) {
+    for (std::size_t k = 0; k < w_size; ++k)
+      partial[0][k] += partial[c][k];
   }
-  return std::vector<float>(dw.data(), dw.data() + dw.size());
+  return std::move(partial[0]);
 }
 
 Tensor conv_op(const Tensor& x, const Tensor& w, const ConvGeometry& g);
@@ -208,6 +236,16 @@ std::int64_t resolve_axis(const char* op, const Padding2d& p, bool vertical, std
 }
 
 }  // namespace
+
+void add_flops(std::uint64_t flops) {
+  g_flops += flops;
+}
+std::uint64_t flop_count() {
+  return g_flops.load();
+}
+void reset_flop_count() {
+  g_flops = 0;
+}
 
 Tensor conv2d(const Tensor& x, const Tensor& w, int stride, const Padding2d& padding) {
   if (!x.defined() || !w.defined())

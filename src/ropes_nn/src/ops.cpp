@@ -41,8 +41,8 @@ bool needs_graph(const std::vector<Tensor>& inputs) {
 }
 
 // the result of an operation, with its backward recorded when needed
-Tensor record(const Shape& shape, std::vector<float> values, std::vector<Tensor> inputs,
-              const char* name, BackwardFn fn) {
+Tensor record(const Shape& shape, Buffer values, std::vector<Tensor> inputs, const char* name,
+              BackwardFn fn) {
   std::shared_ptr<Node> node;
   if (needs_graph(inputs))
     node = std::make_shared<FnNode>(name, std::move(fn));
@@ -75,9 +75,9 @@ Dims4 broadcast_strides(const Dims4& src, const Dims4& out) {
 }
 
 template <typename F>
-std::vector<float> broadcast_apply(const Tensor& a, const Tensor& b, const Shape& out, F f) {
+Buffer broadcast_apply(const Tensor& a, const Tensor& b, const Shape& out, F f) {
   const std::int64_t n = out.numel();
-  std::vector<float> r(static_cast<std::size_t>(n));
+  Buffer r(static_cast<std::size_t>(n));
   const float* pa = a.data();
   const float* pb = b.data();
   if (a.shape() == out && b.shape() == out) {
@@ -109,7 +109,7 @@ std::vector<float> broadcast_apply(const Tensor& a, const Tensor& b, const Shape
 template <typename F>
 Tensor unary(const Tensor& x, const char* name, F f, BackwardFn backward) {
   require_defined(x, name, "x");
-  std::vector<float> r(static_cast<std::size_t>(x.numel()));
+  Buffer r(static_cast<std::size_t>(x.numel()));
   const float* p = x.data();
   for (std::size_t i = 0; i < r.size(); ++i)
     r[i] = f(p[i]);
@@ -119,7 +119,7 @@ Tensor unary(const Tensor& x, const char* name, F f, BackwardFn backward) {
 // a constant tensor (no graph) computed elementwise from x's values
 template <typename F>
 Tensor constant_map(const Tensor& x, F f) {
-  std::vector<float> r(static_cast<std::size_t>(x.numel()));
+  Buffer r(static_cast<std::size_t>(x.numel()));
   const float* p = x.data();
   for (std::size_t i = 0; i < r.size(); ++i)
     r[i] = f(p[i]);
@@ -137,8 +137,7 @@ int normalize_axis(int axis, int rank, const char* op) {
 
 // sums x over the aligned-rank-4 axes marked in `reduce`; the result has the rank-4 shape
 // with those axes set to 1 (row-major), accumulated in double
-std::vector<float> reduce_sum4(const Tensor& x, const std::array<bool, 4>& reduce,
-                               Dims4* out_dims) {
+Buffer reduce_sum4(const Tensor& x, const std::array<bool, 4>& reduce, Dims4* out_dims) {
   const Dims4 xd = align4(x.shape());
   Dims4 od = xd;
   for (std::size_t i = 0; i < 4; ++i) {
@@ -157,7 +156,7 @@ std::vector<float> reduce_sum4(const Tensor& x, const std::array<bool, 4>& reduc
               p[k++];
         }
   *out_dims = od;
-  return std::vector<float>(acc.begin(), acc.end());
+  return Buffer(acc.begin(), acc.end());
 }
 
 }  // namespace
@@ -189,7 +188,7 @@ Tensor broadcast_to(const Tensor& x, const Shape& shape) {
                                 " cannot be stretched to " + shape.str());
   }
   const Tensor zero = Tensor::scalar(0.0f);
-  std::vector<float> r = broadcast_apply(x, zero, shape, [](float v, float) { return v; });
+  Buffer r = broadcast_apply(x, zero, shape, [](float v, float) { return v; });
   const Shape from = x.shape();
   return record(shape, std::move(r), {x}, "broadcast_to",
                 [from](const Grads&, const Tensor& g) { return Grads{sum_to(g, from)}; });
@@ -209,7 +208,7 @@ Tensor sum_to(const Tensor& x, const Shape& shape) {
   for (std::size_t i = 0; i < 4; ++i)
     reduce[i] = td[i] == 1 && xd[i] != 1;
   Dims4 od{};
-  std::vector<float> r = reduce_sum4(x, reduce, &od);
+  Buffer r = reduce_sum4(x, reduce, &od);
   const Shape from = x.shape();
   return record(shape, std::move(r), {x}, "sum_to",
                 [from](const Grads&, const Tensor& g) { return Grads{broadcast_to(g, from)}; });
@@ -410,7 +409,7 @@ Tensor concat(const std::vector<Tensor>& xs, int axis) {
   std::int64_t inner = 1;
   for (int i = ax + 1; i < s0.rank(); ++i)
     inner *= s0[i];
-  std::vector<float> r(static_cast<std::size_t>(out.numel()));
+  Buffer r(static_cast<std::size_t>(out.numel()));
   std::size_t k = 0;
   for (std::int64_t o = 0; o < outer; ++o) {
     for (const Tensor& t : xs) {
@@ -451,7 +450,7 @@ Tensor slice(const Tensor& x, int axis, std::int64_t begin, std::int64_t end) {
   std::int64_t inner = 1;
   for (int i = ax + 1; i < x.rank(); ++i)
     inner *= x.shape()[i];
-  std::vector<float> r(static_cast<std::size_t>(out.numel()));
+  Buffer r(static_cast<std::size_t>(out.numel()));
   const std::int64_t run = (end - begin) * inner;
   for (std::int64_t o = 0; o < outer; ++o) {
     std::copy_n(x.data() + o * size * inner + begin * inner, run,
@@ -481,7 +480,7 @@ Tensor transpose(const Tensor& x) {
     throw std::invalid_argument("transpose: shape " + x.shape().str() + "; expected rank 2");
   }
   const std::int64_t m = x.shape()[0], n = x.shape()[1];
-  std::vector<float> r(static_cast<std::size_t>(m * n));
+  Buffer r(static_cast<std::size_t>(m * n));
   const float* p = x.data();
   for (std::int64_t i = 0; i < m; ++i)
     for (std::int64_t j = 0; j < n; ++j)
@@ -515,7 +514,7 @@ Tensor sum(const Tensor& x, const std::vector<int>& axes, bool keepdim) {
       out_dims.push_back(x.shape()[i]);
   }
   Dims4 od{};
-  std::vector<float> r = reduce_sum4(x, reduce, &od);
+  Buffer r = reduce_sum4(x, reduce, &od);
   const Shape kept(kept_dims);
   const Shape out = keepdim ? kept : Shape(out_dims);
   const Shape from = x.shape();
@@ -548,7 +547,8 @@ Tensor matmul(const Tensor& a, const Tensor& b) {
   }
   using RowMajor = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
   const std::int64_t m = a.shape()[0], k = a.shape()[1], n = b.shape()[1];
-  std::vector<float> r(static_cast<std::size_t>(m * n));
+  Buffer r(static_cast<std::size_t>(m * n));
+  add_flops(static_cast<std::uint64_t>(2 * m * k * n));
   Eigen::Map<RowMajor>(r.data(), m, n).noalias() =
       Eigen::Map<const RowMajor>(a.data(), m, k) * Eigen::Map<const RowMajor>(b.data(), k, n);
   return record(Shape{m, n}, std::move(r), {a, b}, "matmul", [](const Grads& in, const Tensor& g) {

@@ -82,14 +82,17 @@ GradModeGuard::~GradModeGuard() {
 
 // --- Tensor ---------------------------------------------------------------------------------
 
-Tensor::Tensor(const Shape& shape, std::vector<float> values, bool requires_grad) {
+Tensor::Tensor(const Shape& shape, const std::vector<float>& values, bool requires_grad)
+    : Tensor(shape, Buffer(values.begin(), values.end()), requires_grad) {}
+
+Tensor::Tensor(const Shape& shape, Buffer values, bool requires_grad) {
   if (static_cast<std::int64_t>(values.size()) != shape.numel()) {
     throw std::invalid_argument("Tensor: " + std::to_string(values.size()) + " values for shape " +
                                 shape.str() + "; expected " + std::to_string(shape.numel()));
   }
   impl_ = std::make_shared<TensorImpl>();
   impl_->shape = shape;
-  impl_->storage = std::make_shared<std::vector<float>>(std::move(values));
+  impl_->storage = std::make_shared<Buffer>(std::move(values));
   impl_->requires_grad = requires_grad;
 }
 
@@ -100,11 +103,10 @@ Tensor Tensor::ones(const Shape& shape, bool requires_grad) {
   return full(shape, 1.0f, requires_grad);
 }
 Tensor Tensor::full(const Shape& shape, float value, bool requires_grad) {
-  return Tensor(shape, std::vector<float>(static_cast<std::size_t>(shape.numel()), value),
-                requires_grad);
+  return Tensor(shape, Buffer(static_cast<std::size_t>(shape.numel()), value), requires_grad);
 }
 Tensor Tensor::scalar(float value, bool requires_grad) {
-  return Tensor(Shape{}, {value}, requires_grad);
+  return Tensor(Shape{}, Buffer(1, value), requires_grad);
 }
 
 const Shape& Tensor::shape() const {
@@ -118,7 +120,7 @@ float* Tensor::mutable_data() {
 }
 std::vector<float> Tensor::to_vector() const {
   const TensorImpl& impl = checked(impl_, "to_vector");
-  return *impl.storage;
+  return std::vector<float>(impl.storage->begin(), impl.storage->end());
 }
 
 float Tensor::item() const {
@@ -214,7 +216,7 @@ Tensor share_storage(const Tensor& source, const Shape& shape, std::shared_ptr<N
   return t;
 }
 
-Tensor make_op_result(const Shape& shape, std::vector<float> values, std::shared_ptr<Node> node,
+Tensor make_op_result(const Shape& shape, Buffer values, std::shared_ptr<Node> node,
                       std::vector<Tensor> inputs) {
   Tensor t(shape, std::move(values));
   if (!grad_mode_enabled())

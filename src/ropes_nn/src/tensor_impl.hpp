@@ -9,7 +9,7 @@ namespace ropes::nn {
 
 struct TensorImpl {
   Shape shape;
-  std::shared_ptr<std::vector<float>> storage;  // shape.numel() floats, shared by reshape
+  std::shared_ptr<Buffer> storage;  // shape.numel() floats, shared by reshape
   bool requires_grad = false;
   std::shared_ptr<Node> grad_fn;  // null for leaves
   Tensor grad;                    // accumulated by Tensor::backward, leaves only
@@ -21,4 +21,6 @@ namespace ropes::nn {
 // A tensor that views `source`'s storage with another shape; records `node` (whose
 // backward must undo the view) when grad mode is on and `source` requires grad.
 Tensor share_storage(const Tensor& source, const Shape& shape, std::shared_ptr<Node> node);
+// Adds to the benchmark FLOP counter (flop_count() in ops.hpp).
+void add_flops(std::uint64_t flops);
 }  // namespace ropes::nn

@@ -8,6 +8,7 @@
 /// and a dimension of 1 stretches to the other's. Mismatches throw std::invalid_argument
 /// printing the operation and both shapes.
 
+#include <cstdint>
 #include <vector>
 
 #include "ropes_nn/tensor.hpp"
@@ -116,6 +117,12 @@ Tensor conv_transpose2d(const Tensor& x, const Tensor& w, int stride = 1,
 /// (PyTorch's GroupNorm uses 1e-5). Built from differentiable operations.
 Tensor group_norm(const Tensor& x, int groups, const Tensor& gamma, const Tensor& beta,
                   float eps = 1e-6f);
+
+// --- benchmarks ----------------------------------------------------------------------------------
+/// Floating-point operations done by the matrix products (matmul and the convolution
+/// kernels) since the last reset, all threads together: for benchmarks' GFLOP/s.
+std::uint64_t flop_count();
+void reset_flop_count();
 
 // --- losses -------------------------------------------------------------------------------------
 /// mean((prediction - target)^2) over all elements.

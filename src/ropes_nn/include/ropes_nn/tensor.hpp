@@ -18,6 +18,8 @@
 #include <string>
 #include <vector>
 
+#include "ropes_nn/buffer.hpp"
+
 namespace ropes::nn {
 
 class Node;
@@ -56,7 +58,12 @@ class Tensor {
 
   /// A tensor of `shape` holding `values` (row-major; values.size() must equal
   /// shape.numel(), else std::invalid_argument naming both).
-  Tensor(const Shape& shape, std::vector<float> values, bool requires_grad = false);
+  Tensor(const Shape& shape, const std::vector<float>& values, bool requires_grad = false);
+  /// The same, taking a pool buffer without copying.
+  Tensor(const Shape& shape, Buffer values, bool requires_grad = false);
+  /// The same from a braced list: Tensor(Shape{2}, {1.0f, 2.0f}).
+  Tensor(const Shape& shape, std::initializer_list<float> values, bool requires_grad = false)
+      : Tensor(shape, std::vector<float>(values), requires_grad) {}
 
   static Tensor zeros(const Shape& shape, bool requires_grad = false);
   static Tensor ones(const Shape& shape, bool requires_grad = false);
@@ -104,8 +111,7 @@ class Tensor {
   const TensorImpl* id() const { return impl_.get(); }
 
  private:
-  friend Tensor make_op_result(const Shape&, std::vector<float>, std::shared_ptr<Node>,
-                               std::vector<Tensor>);
+  friend Tensor make_op_result(const Shape&, Buffer, std::shared_ptr<Node>, std::vector<Tensor>);
   friend Tensor share_storage(const Tensor&, const Shape&, std::shared_ptr<Node>);
   friend void accumulate_leaf_grad(const Tensor&, const Tensor&);
   std::shared_ptr<TensorImpl> impl_;
@@ -128,7 +134,7 @@ class Node {
 /// Builds an operation's result: a tensor with `values`, and — when grad mode is on and an
 /// input requires grad — `node` as its grad_fn with `inputs` recorded. For operation
 /// implementers (ops.cpp and extensions).
-Tensor make_op_result(const Shape& shape, std::vector<float> values, std::shared_ptr<Node> node,
+Tensor make_op_result(const Shape& shape, Buffer values, std::shared_ptr<Node> node,
                       std::vector<Tensor> inputs);
 
 /// Whether operations record autodiff graphs on this thread (on by default).

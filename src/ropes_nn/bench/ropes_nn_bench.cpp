@@ -1,0 +1,205 @@
+// ropes_nn_bench: images/s of one training step (forward, backward, Adam) for the paper's
+// networks, next to PyTorch's figures for the same networks measured in the same run by
+// bench/torch_peer.py (Debian's python3-torch, tcmalloc preloaded, same thread count).
+// Also the achieved GFLOP/s of the convolutions against a GEMM peak measured here.
+//
+//   ropes_nn_bench [--quick] [--no-peer] [--threads N]
+#include <Eigen/Core>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "networks.hpp"
+#include "ropes_nn/adam.hpp"
+#include "ropes_nn/ops.hpp"
+#include "ropes_nn/parallel.hpp"
+#include "ropes_nn/philox.hpp"
+
+using namespace ropes::nn;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+// median seconds of `repeats` calls after one warm-up call
+double median_seconds(const std::function<void()>& step, int repeats) {
+  step();
+  std::vector<double> times;
+  for (int i = 0; i < repeats; ++i) {
+    const auto t0 = Clock::now();
+    step();
+    times.push_back(seconds_since(t0));
+  }
+  std::sort(times.begin(), times.end());
+  return times[times.size() / 2];
+}
+
+// GEMM peak: the best of a few 1024^3 single-precision products through Eigen
+double gemm_peak_gflops() {
+  using M = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  const int n = 1024;
+  M a = M::Random(n, n), b = M::Random(n, n), c(n, n);
+  double best = 0;
+  for (int i = 0; i < 5; ++i) {
+    const auto t0 = Clock::now();
+    c.noalias() = a * b;
+    best = std::max(best, 2.0 * n * n * n / seconds_since(t0) / 1e9);
+  }
+  return best + 0 * c(0, 0);
+}
+
+std::map<std::string, double> run_peer(bool quick, int threads) {
+  std::map<std::string, double> peer;
+  std::string preload;
+  for (const char* lib : {"/usr/lib/x86_64-linux-gnu/libtcmalloc_minimal.so.4"}) {
+    if (FILE* f = std::fopen(lib, "r")) {
+      std::fclose(f);
+      preload = std::string("LD_PRELOAD=") + lib + " ";
+    }
+  }
+  if (preload.empty())
+    std::printf("note: libtcmalloc-minimal4 missing; PyTorch without it\n");
+  const std::string command = preload + "/usr/bin/python3 " + ROPES_NN_BENCH_DIR +
+                              "/torch_peer.py --threads " + std::to_string(threads) +
+                              (quick ? " --quick" : "") + " 2>/dev/null";
+  FILE* pipe = popen(command.c_str(), "r");
+  if (!pipe)
+    return peer;
+  char name[128];
+  double value = 0;
+  while (std::fscanf(pipe, "%127s %lf", name, &value) == 2)
+    peer[name] = value;
+  if (pclose(pipe) != 0 && peer.empty()) {
+    std::printf("note: the PyTorch peer did not run (apt-get install python3-torch)\n");
+  }
+  return peer;
+}
+
+void report(const char* name, double ours, const std::map<std::string, double>& peer,
+            const char* unit, bool higher_is_better, double gflops = 0, double peak = 0) {
+  std::printf("%-30s %10.2f %-12s", name, ours, unit);
+  const auto it = peer.find(name);
+  if (it != peer.end()) {
+    const double ratio = higher_is_better ? ours / it->second : it->second / ours;
+    std::printf("  pytorch %10.2f  ratio %5.2fx", it->second, ratio);
+  }
+  if (gflops > 0)
+    std::printf("  %6.1f GFLOP/s (%4.1f%% of peak)", gflops, 100 * gflops / peak);
+  std::printf("\n");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  bool quick = false, peer_wanted = true;
+  int threads = 2;
+  for (int i = 1; i < argc; ++i) {
+    if (!std::strcmp(argv[i], "--quick")) {
+      quick = true;
+    } else if (!std::strcmp(argv[i], "--no-peer")) {
+      peer_wanted = false;
+    } else if (!std::strcmp(argv[i], "--threads") && i + 1 < argc) {
+      threads = std::atoi(argv[++i]);
+    } else {
+      std::fprintf(stderr, "usage: ropes_nn_bench [--quick] [--no-peer] [--threads N]\n");
+      return 2;
+    }
+  }
+  set_num_threads(threads);
+  const int repeats = quick ? 3 : 7;
+  const double peak = gemm_peak_gflops();
+  std::printf("ropes_nn_bench: %d thread(s); GEMM peak (Eigen sgemm 1024^3) %.1f GFLOP/s\n",
+              num_threads(), peak);
+  const auto peer = peer_wanted ? run_peer(quick, threads) : std::map<std::string, double>{};
+
+  // AE1 at two widths: 128x128x1 images, batch 32
+  for (const auto& [m, label] : {std::pair{1.0 / 8, "ae1_x1/8"}, std::pair{1.0 / 4, "ae1_x1/4"}}) {
+    bench::Ae1 ae(m);
+    std::vector<Tensor> params = ae.encoder->parameters();
+    for (const Tensor& p : ae.decoder->parameters())
+      params.push_back(p);
+    Adam adam(params, AdamOptions{1e-4});
+    PhiloxStream rng(1, 0);
+    std::vector<float> pixels(32 * 128 * 128);
+    for (float& v : pixels)
+      v = rng.uniform_float();
+    const Tensor x(Shape{32, 1, 128, 128}, pixels);
+    reset_flop_count();
+    const double s = median_seconds(
+        [&] {
+          train_step(adam,
+                     [&](std::size_t) { return mse_loss((*ae.decoder)((*ae.encoder)(x)), x); },
+                     {1.0});
+        },
+        repeats);
+    const double flops = static_cast<double>(flop_count()) / (repeats + 1);
+    report((std::string(label) + "_train").c_str(), 32 / s, peer, "images/s", true, flops / s / 1e9,
+           peak);
+    const Tensor one = slice(x, 0, 0, 1);
+    GradModeGuard no_grad(false);
+    const double latency = median_seconds([&] { (*ae.encoder)(one); }, repeats * 5);
+    report((std::string(label) + "_encode_latency_ms").c_str(), 1000 * latency, peer, "ms", false);
+  }
+
+  // LDR: 8x8x2 codes, batch 64
+  {
+    bench::Ldr ldr(2);
+    Adam adam(ldr.parameters(), AdamOptions{1e-3});
+    PhiloxStream rng(2, 0);
+    std::vector<float> y(64 * 2 * 8 * 8), t(64);
+    for (float& v : y)
+      v = static_cast<float>(rng.normal());
+    for (float& v : t)
+      v = rng.uniform_float() < 0.5f ? 0.0f : 1.0f;
+    const Tensor codes(Shape{64, 2, 8, 8}, y), labels(Shape{64, 1}, t);
+    const double s = median_seconds(
+        [&] {
+          train_step(adam, [&](std::size_t) { return bce_with_logits(ldr.forward(codes), labels); },
+                     {1.0});
+        },
+        repeats * 3);
+    report("ldr_train", 64 / s, peer, "images/s", true);
+  }
+
+  // AE2 with the double-backward score-sparsity loss: 8x8x2 codes, batch 64
+  for (const auto& [m, label] : {std::pair{1.0 / 8, "ae2_x1/8_sparsity_train"},
+                                 std::pair{1.0 / 4, "ae2_x1/4_sparsity_train"}}) {
+    bench::Ae2 ae(m, 2, 6);
+    Adam adam(ae.parameters(), AdamOptions{7e-5});
+    PhiloxStream rng(3, 0);
+    std::vector<float> y(64 * 128), v(64 * 128);
+    for (float& a : y)
+      a = static_cast<float>(rng.normal());
+    for (float& a : v)
+      a = static_cast<float>(rng.normal());
+    const Tensor codes(Shape{64, 2, 8, 8}, y), scores(Shape{64, 2, 8, 8}, v);
+    std::vector<float> e(6, 0.0f);
+    e[1] = 1.0f;
+    const Tensor target(Shape{6}, e);
+    const double s = median_seconds(
+        [&] {
+          train_step(adam,
+                     [&](std::size_t) {
+                       const Tensor z = ae.encode(codes);
+                       const Tensor recon = ae.decode(z);
+                       const Tensor jtv = grad({recon}, {z}, {scores}, /*create_graph=*/true)[0];
+                       return add(mse_loss(recon, codes),
+                                  sum(square(sub(mean(abs(jtv), {0}), target))));
+                     },
+                     {1.0});
+        },
+        repeats);
+    report(label, 64 / s, peer, "images/s", true);
+  }
+  return 0;
+}
