@@ -296,11 +296,29 @@ std::vector<Tensor> grad(const std::vector<Tensor>& outputs, const std::vector<T
     }
   }
 
-  // walk from the outputs towards the leaves, pushing each gradient to the node's inputs
+  // only tensors on a path to an asked-for input matter (and a node's backward must not run
+  // for anything else: group_norm's differentiable backward calls grad() itself). `order`
+  // lists every tensor after the tensors it was computed from, so one pass marks them.
+  std::unordered_set<const TensorImpl*> needed;
+  for (const Tensor& in : inputs)
+    needed.insert(in.id());
+  for (const Tensor& t : order) {
+    const std::shared_ptr<Node>& node = t.grad_fn();
+    if (!node || needed.count(t.id()))
+      continue;
+    for (const Tensor& in : node->inputs) {
+      if (needed.count(in.id())) {
+        needed.insert(t.id());
+        break;
+      }
+    }
+  }
+
+  // walk from the outputs towards the inputs, pushing each gradient to the node's inputs
   for (auto it = order.rbegin(); it != order.rend(); ++it) {
     const Tensor& t = *it;
     const std::shared_ptr<Node>& node = t.grad_fn();
-    if (!node)
+    if (!node || !needed.count(t.id()))
       continue;
     auto found = grads.find(t.id());
     if (found == grads.end())
@@ -309,7 +327,7 @@ std::vector<Tensor> grad(const std::vector<Tensor>& outputs, const std::vector<T
     const std::vector<Tensor> input_grads = node->backward(g);
     for (std::size_t i = 0; i < node->inputs.size(); ++i) {
       const Tensor& in = node->inputs[i];
-      if (!in.requires_grad() || !input_grads[i].defined())
+      if (!in.requires_grad() || !input_grads[i].defined() || !needed.count(in.id()))
         continue;
       auto [slot, fresh] = grads.emplace(in.id(), input_grads[i]);
       if (!fresh)

@@ -159,6 +159,17 @@ TEST(Autograd, SharedSubexpressionsAndRepeatedInputsSumTheirPaths) {
   EXPECT_EQ(grad({y, z}, {x})[0].item(), 39.0f);
 }
 
+TEST(Autograd, AnInputComputedFromAnotherInputPassesItsGradientOn) {
+  // y = x^2 is asked for too: d(y * x)/dx = y + x * 2x = 3x^2 = 12, d(y * x)/dy = x = 2
+  const Tensor x = Tensor::scalar(2.0f, true);
+  const Tensor y = square(x);
+  const auto g = grad({mul(y, x)}, {x, y});
+  EXPECT_EQ(g[0].item(), 12.0f);
+  EXPECT_EQ(g[1].item(), 2.0f);
+  // and the sweep stops at what is asked: x's history is not walked for y alone
+  EXPECT_EQ(grad({mul(y, x)}, {y})[0].item(), 2.0f);
+}
+
 TEST(Autograd, ReportsMisuseClearly) {
   const Tensor x = Tensor(Shape{2}, {1, 2}, true);
   const Tensor unrelated = Tensor(Shape{2}, {1, 2}, true);
