@@ -4,6 +4,10 @@
 // Also the achieved GFLOP/s of the convolutions against a GEMM peak measured here.
 //
 //   ropes_nn_bench [--quick] [--no-peer] [--threads N]
+//   ropes_nn_bench --paper-ae1 [--micro-batch M]   one AE1 step at the appendix's width
+//                                                 (batch 32 in micro-batches of M), with
+//                                                 its time and peak resident memory
+#include <sys/resource.h>
 #include <Eigen/Core>
 
 #include <algorithm>
@@ -98,11 +102,48 @@ void report(const char* name, double ours, const std::map<std::string, double>& 
   std::printf("\n");
 }
 
+// one AE1 training step at paper width, batch 32 split into micro-batches
+int paper_ae1(int micro_batch) {
+  if (micro_batch < 1 || 32 % micro_batch != 0) {
+    std::fprintf(stderr, "--micro-batch %d: expected a divisor of 32\n", micro_batch);
+    return 2;
+  }
+  bench::Ae1 ae(1.0);
+  std::vector<Tensor> params = ae.encoder->parameters();
+  for (const Tensor& p : ae.decoder->parameters())
+    params.push_back(p);
+  Adam adam(params, AdamOptions{1e-4});
+  PhiloxStream rng(1, 0);
+  std::vector<float> pixels(32 * 128 * 128);
+  for (float& v : pixels)
+    v = rng.uniform_float();
+  const Tensor x(Shape{32, 1, 128, 128}, pixels);
+  const std::size_t parts = static_cast<std::size_t>(32 / micro_batch);
+  const auto t0 = Clock::now();
+  const double loss = train_step(
+      adam,
+      [&](std::size_t i) {
+        const Tensor xi = slice(x, 0, static_cast<std::int64_t>(i) * micro_batch,
+                                static_cast<std::int64_t>(i + 1) * micro_batch);
+        return mse_loss((*ae.decoder)((*ae.encoder)(xi)), xi);
+      },
+      std::vector<double>(parts, 1.0 / static_cast<double>(parts)));
+  const double s = seconds_since(t0);
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  std::printf(
+      "paper-width AE1: %lld parameters, batch 32 as %zu micro-batches of %d: %.1f s "
+      "(%.2f images/s), loss %.4f, peak RSS %.2f GiB\n",
+      static_cast<long long>(ae.encoder->parameter_count() + ae.decoder->parameter_count()), parts,
+      micro_batch, s, 32 / s, loss, usage.ru_maxrss / 1048576.0);
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool quick = false, peer_wanted = true;
-  int threads = 2;
+  bool quick = false, peer_wanted = true, paper = false;
+  int threads = 2, micro_batch = 4;
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--quick")) {
       quick = true;
@@ -110,12 +151,20 @@ int main(int argc, char** argv) {
       peer_wanted = false;
     } else if (!std::strcmp(argv[i], "--threads") && i + 1 < argc) {
       threads = std::atoi(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--paper-ae1")) {
+      paper = true;
+    } else if (!std::strcmp(argv[i], "--micro-batch") && i + 1 < argc) {
+      micro_batch = std::atoi(argv[++i]);
     } else {
-      std::fprintf(stderr, "usage: ropes_nn_bench [--quick] [--no-peer] [--threads N]\n");
+      std::fprintf(stderr,
+                   "usage: ropes_nn_bench [--quick] [--no-peer] [--threads N]\n"
+                   "       ropes_nn_bench --paper-ae1 [--micro-batch M] [--threads N]\n");
       return 2;
     }
   }
   set_num_threads(threads);
+  if (paper)
+    return paper_ae1(micro_batch);
   const int repeats = quick ? 3 : 7;
   const double peak = gemm_peak_gflops();
   std::printf("ropes_nn_bench: %d thread(s); GEMM peak (Eigen sgemm 1024^3) %.1f GFLOP/s\n",

@@ -34,21 +34,46 @@ struct ConvGeometry {
   Shape y_shape() const { return Shape{n, o, oh, ow}; }
 };
 
+// the output columns [begin, end) of one kernel column kj whose input pixel is inside the
+// image: ix = ox * stride - left + kj in [0, w)
+void inside_range(const ConvGeometry& g, std::int64_t kj, std::int64_t* begin, std::int64_t* end) {
+  const std::int64_t offset = kj - g.left;  // ix = ox * stride + offset
+  std::int64_t b = offset >= 0 ? 0 : (-offset + g.stride - 1) / g.stride;
+  std::int64_t e = g.w - offset <= 0 ? 0 : (g.w - offset + g.stride - 1) / g.stride;
+  b = std::min(b, g.ow);
+  e = std::max(b, std::min(e, g.ow));
+  *begin = b;
+  *end = e;
+}
+
 // x [c, h, w] -> col [c*kh*kw, oh*ow], zeros where the window leaves the image
 void im2col(const float* x, const ConvGeometry& g, float* col) {
-  for (std::int64_t ch = 0; ch < g.c; ++ch)
-    for (std::int64_t ki = 0; ki < g.kh; ++ki)
-      for (std::int64_t kj = 0; kj < g.kw; ++kj) {
+  for (std::int64_t kj = 0; kj < g.kw; ++kj) {
+    std::int64_t ox_begin = 0, ox_end = 0;
+    inside_range(g, kj, &ox_begin, &ox_end);
+    const std::int64_t offset = kj - g.left;
+    for (std::int64_t ch = 0; ch < g.c; ++ch)
+      for (std::int64_t ki = 0; ki < g.kh; ++ki) {
         float* row = col + ((ch * g.kh + ki) * g.kw + kj) * g.pixels();
         for (std::int64_t oy = 0; oy < g.oh; ++oy) {
+          float* out = row + oy * g.ow;
           const std::int64_t iy = oy * g.stride - g.top + ki;
-          for (std::int64_t ox = 0; ox < g.ow; ++ox) {
-            const std::int64_t ix = ox * g.stride - g.left + kj;
-            const bool inside = iy >= 0 && iy < g.h && ix >= 0 && ix < g.w;
-            row[oy * g.ow + ox] = inside ? x[(ch * g.h + iy) * g.w + ix] : 0.0f;
+          if (iy < 0 || iy >= g.h) {
+            std::fill(out, out + g.ow, 0.0f);
+            continue;
           }
+          const float* in = x + (ch * g.h + iy) * g.w + offset;
+          std::fill(out, out + ox_begin, 0.0f);
+          if (g.stride == 1) {
+            std::copy(in + ox_begin, in + ox_end, out + ox_begin);
+          } else {
+            for (std::int64_t ox = ox_begin; ox < ox_end; ++ox)
+              out[ox] = in[ox * g.stride];
+          }
+          std::fill(out + ox_end, out + g.ow, 0.0f);
         }
       }
+  }
 }
 
 // the adjoint of im2col: col [c*kh*kw, oh*ow] summed back into x [c, h, w] (x zeroed first)
@@ -57,15 +82,22 @@ void col2im(const float* col, const ConvGeometry& g, float* x) {
   for (std::int64_t ch = 0; ch < g.c; ++ch)
     for (std::int64_t ki = 0; ki < g.kh; ++ki)
       for (std::int64_t kj = 0; kj < g.kw; ++kj) {
+        std::int64_t ox_begin = 0, ox_end = 0;
+        inside_range(g, kj, &ox_begin, &ox_end);
+        const std::int64_t offset = kj - g.left;
         const float* row = col + ((ch * g.kh + ki) * g.kw + kj) * g.pixels();
         for (std::int64_t oy = 0; oy < g.oh; ++oy) {
           const std::int64_t iy = oy * g.stride - g.top + ki;
           if (iy < 0 || iy >= g.h)
             continue;
-          for (std::int64_t ox = 0; ox < g.ow; ++ox) {
-            const std::int64_t ix = ox * g.stride - g.left + kj;
-            if (ix >= 0 && ix < g.w)
-              x[(ch * g.h + iy) * g.w + ix] += row[oy * g.ow + ox];
+          float* out = x + (ch * g.h + iy) * g.w + offset;
+          const float* in = row + oy * g.ow;
+          if (g.stride == 1) {
+            for (std::int64_t ox = ox_begin; ox < ox_end; ++ox)
+              out[ox] += in[ox];
+          } else {
+            for (std::int64_t ox = ox_begin; ox < ox_end; ++ox)
+              out[ox * g.stride] += in[ox];
           }
         }
       }

@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "ropes_nn/parallel.hpp"
 #include "tensor_impl.hpp"
 
 namespace ropes::nn {
@@ -74,35 +75,67 @@ Dims4 broadcast_strides(const Dims4& src, const Dims4& out) {
   return strides;
 }
 
+// elementwise loops split over threads when large enough to pay for it (pure elementwise
+// work: the result does not depend on the split)
+constexpr std::int64_t kParallelElements = 1 << 15;
+
+template <typename Body>
+void elementwise_for(std::int64_t n, Body body) {
+  if (n < kParallelElements) {
+    body(0, n);
+  } else {
+    parallel_for(n, [&](int, std::int64_t begin, std::int64_t end) { body(begin, end); });
+  }
+}
+
 template <typename F>
 Buffer broadcast_apply(const Tensor& a, const Tensor& b, const Shape& out, F f) {
   const std::int64_t n = out.numel();
   Buffer r(static_cast<std::size_t>(n));
+  float* pr = r.data();
   const float* pa = a.data();
   const float* pb = b.data();
   if (a.shape() == out && b.shape() == out) {
-    for (std::int64_t i = 0; i < n; ++i)
-      r[static_cast<std::size_t>(i)] = f(pa[i], pb[i]);
+    elementwise_for(n, [&](std::int64_t begin, std::int64_t end) {
+      for (std::int64_t i = begin; i < end; ++i)
+        pr[i] = f(pa[i], pb[i]);
+    });
     return r;
   }
   if (a.shape() == out && b.numel() == 1) {
     const float vb = pb[0];
-    for (std::int64_t i = 0; i < n; ++i)
-      r[static_cast<std::size_t>(i)] = f(pa[i], vb);
+    elementwise_for(n, [&](std::int64_t begin, std::int64_t end) {
+      for (std::int64_t i = begin; i < end; ++i)
+        pr[i] = f(pa[i], vb);
+    });
     return r;
   }
+  // general case: rows of the innermost axis, split over threads by row
   const Dims4 od = align4(out);
   const Dims4 sa = broadcast_strides(align4(a.shape()), od);
   const Dims4 sb = broadcast_strides(align4(b.shape()), od);
-  std::size_t k = 0;
-  for (std::int64_t i0 = 0; i0 < od[0]; ++i0)
-    for (std::int64_t i1 = 0; i1 < od[1]; ++i1)
-      for (std::int64_t i2 = 0; i2 < od[2]; ++i2)
-        for (std::int64_t i3 = 0; i3 < od[3]; ++i3) {
-          const std::int64_t oa = i0 * sa[0] + i1 * sa[1] + i2 * sa[2] + i3 * sa[3];
-          const std::int64_t ob = i0 * sb[0] + i1 * sb[1] + i2 * sb[2] + i3 * sb[3];
-          r[k++] = f(pa[oa], pb[ob]);
-        }
+  const std::int64_t rows = od[0] * od[1] * od[2];
+  const auto run = [&](std::int64_t begin, std::int64_t end) {
+    for (std::int64_t row = begin; row < end; ++row) {
+      const std::int64_t i2 = row % od[2], i1 = (row / od[2]) % od[1], i0 = row / (od[2] * od[1]);
+      const float* ra = pa + i0 * sa[0] + i1 * sa[1] + i2 * sa[2];
+      const float* rb = pb + i0 * sb[0] + i1 * sb[1] + i2 * sb[2];
+      float* rr = pr + row * od[3];
+      if (sa[3] == 1 && sb[3] == 0) {
+        const float vb = rb[0];
+        for (std::int64_t i3 = 0; i3 < od[3]; ++i3)
+          rr[i3] = f(ra[i3], vb);
+      } else {
+        for (std::int64_t i3 = 0; i3 < od[3]; ++i3)
+          rr[i3] = f(ra[i3 * sa[3]], rb[i3 * sb[3]]);
+      }
+    }
+  };
+  if (n < kParallelElements) {
+    run(0, rows);
+  } else {
+    parallel_for(rows, [&](int, std::int64_t begin, std::int64_t end) { run(begin, end); });
+  }
   return r;
 }
 
@@ -110,9 +143,12 @@ template <typename F>
 Tensor unary(const Tensor& x, const char* name, F f, BackwardFn backward) {
   require_defined(x, name, "x");
   Buffer r(static_cast<std::size_t>(x.numel()));
+  float* pr = r.data();
   const float* p = x.data();
-  for (std::size_t i = 0; i < r.size(); ++i)
-    r[i] = f(p[i]);
+  elementwise_for(x.numel(), [&](std::int64_t begin, std::int64_t end) {
+    for (std::int64_t i = begin; i < end; ++i)
+      pr[i] = f(p[i]);
+  });
   return record(x.shape(), std::move(r), {x}, name, std::move(backward));
 }
 
@@ -120,9 +156,25 @@ Tensor unary(const Tensor& x, const char* name, F f, BackwardFn backward) {
 template <typename F>
 Tensor constant_map(const Tensor& x, F f) {
   Buffer r(static_cast<std::size_t>(x.numel()));
+  float* pr = r.data();
   const float* p = x.data();
-  for (std::size_t i = 0; i < r.size(); ++i)
-    r[i] = f(p[i]);
+  elementwise_for(x.numel(), [&](std::int64_t begin, std::int64_t end) {
+    for (std::int64_t i = begin; i < end; ++i)
+      pr[i] = f(p[i]);
+  });
+  return Tensor(x.shape(), std::move(r));
+}
+
+// g masked where x <= 0, in one pass: relu's backward when no graph is recorded
+Tensor masked_by_positive(const Tensor& g, const Tensor& x) {
+  Buffer r(static_cast<std::size_t>(x.numel()));
+  float* pr = r.data();
+  const float* pg = g.data();
+  const float* px = x.data();
+  elementwise_for(x.numel(), [&](std::int64_t begin, std::int64_t end) {
+    for (std::int64_t i = begin; i < end; ++i)
+      pr[i] = px[i] > 0.0f ? pg[i] : 0.0f;
+  });
   return Tensor(x.shape(), std::move(r));
 }
 
@@ -335,6 +387,9 @@ Tensor relu(const Tensor& x) {
   return unary(
       x, "relu", [](float v) { return v > 0.0f ? v : 0.0f; },
       [](const Grads& in, const Tensor& g) {
+        if (!grad_mode_enabled())
+          return Grads{masked_by_positive(g, in[0])};
+        // create_graph: the step is a constant, so the second derivative is zero
         const Tensor step = constant_map(in[0], [](float v) { return v > 0.0f ? 1.0f : 0.0f; });
         return Grads{mul(g, step)};
       });
