@@ -1,0 +1,76 @@
+// The threading contract of parallel.hpp: bit-identical results for the same thread count,
+// agreement to float rounding across thread counts.
+#include "ropes_nn/parallel.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "ropes_nn/layers.hpp"
+#include "ropes_nn/ops.hpp"
+#include "ropes_nn/philox.hpp"
+
+namespace ropes::nn {
+namespace {
+
+// loss and every parameter gradient of a small conv net on a batch of 8
+std::vector<float> loss_and_gradients(int threads) {
+  set_num_threads(threads);
+  Sequential net;
+  net.add(std::make_shared<Conv2d>(2, 8, 3, 2));
+  net.add(std::make_shared<ResBlockGN>(8, 4));
+  net.add(std::make_shared<ConvTranspose2d>(8, 2, 4, 2));
+  net.initialize(11);
+  PhiloxStream rng(12, 0);
+  std::vector<float> pixels(8 * 2 * 16 * 16);
+  for (float& v : pixels)
+    v = static_cast<float>(rng.normal());
+  const Tensor x(Shape{8, 2, 16, 16}, pixels);
+  const Tensor loss = mse_loss(net(x), x);
+  std::vector<float> out = {loss.item()};
+  for (const Tensor& g : grad({loss}, net.parameters())) {
+    const std::vector<float> v = g.to_vector();
+    out.insert(out.end(), v.begin(), v.end());
+  }
+  return out;
+}
+
+TEST(Parallel, SameThreadCountGivesBitIdenticalResults) {
+  const int saved = num_threads();
+  EXPECT_EQ(loss_and_gradients(2), loss_and_gradients(2));
+  EXPECT_EQ(loss_and_gradients(1), loss_and_gradients(1));
+  set_num_threads(saved);
+}
+
+TEST(Parallel, OtherThreadCountsAgreeToFloatRounding) {
+  const int saved = num_threads();
+  const std::vector<float> one = loss_and_gradients(1);
+  const std::vector<float> two = loss_and_gradients(2);
+  const std::vector<float> three = loss_and_gradients(3);
+  set_num_threads(saved);
+  ASSERT_EQ(one.size(), two.size());
+  double scale = 0;
+  for (float v : one)
+    scale = std::max(scale, static_cast<double>(std::abs(v)));
+  for (std::size_t i = 0; i < one.size(); ++i) {
+    EXPECT_NEAR(two[i], one[i], 1e-5 * scale) << i;
+    EXPECT_NEAR(three[i], one[i], 1e-5 * scale) << i;
+  }
+}
+
+TEST(Parallel, ParallelForCoversTheRangeInFixedChunks) {
+  const int saved = num_threads();
+  set_num_threads(3);
+  std::vector<int> owner(10, -1);
+  parallel_for(10, [&](int chunk, std::int64_t begin, std::int64_t end) {
+    for (std::int64_t i = begin; i < end; ++i)
+      owner[static_cast<std::size_t>(i)] = chunk;
+  });
+  EXPECT_EQ(owner, (std::vector<int>{0, 0, 0, 1, 1, 1, 2, 2, 2, 2}));
+  EXPECT_THROW(set_num_threads(0), std::invalid_argument);
+  set_num_threads(saved);
+}
+
+}  // namespace
+}  // namespace ropes::nn
