@@ -94,6 +94,22 @@ TEST(SafetensorsGolden, APythonReaderOfThePublishedFormatReadsWhatWeWrite) {
   std::ifstream in(listing);
   const std::string printed((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   EXPECT_EQ(printed, expected.str());
+
+  // the values themselves: the reader saves each tensor with numpy.save (through
+  // torch.from_numpy when python3-torch is there) and read_npy compares every bit
+  const fs::path exported = scratch("exported");
+  fs::create_directories(exported);
+  const std::string export_command = "/usr/bin/python3 " + std::string(ROPES_NN_TOOLS) +
+                                     "/safetensors_io.py export '" + path.string() + "' '" +
+                                     exported.string() + "' > /dev/null";
+  ASSERT_EQ(std::system(export_command.c_str()), 0) << export_command;
+  for (const auto& [name, t] : params) {
+    const NpyArray a = read_npy(exported / (name + ".npy"));
+    EXPECT_EQ(a.dtype, DType::kF32) << name;
+    EXPECT_EQ(a.shape, t.shape().dims()) << name;
+    ASSERT_EQ(a.data.size(), static_cast<std::size_t>(t.numel()) * 4) << name;
+    EXPECT_EQ(std::memcmp(a.data.data(), t.data(), a.data.size()), 0) << name;
+  }
   fs::remove_all(path.parent_path());
 }
 

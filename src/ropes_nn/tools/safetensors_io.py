@@ -3,7 +3,10 @@
 (Debian has no python3-safetensors): 8-byte little-endian header length, JSON header,
 raw little-endian tensor bytes. Used by ropes_nn's tests and fixture scripts.
 
-    safetensors_io.py summary FILE    print name, dtype, shape and float64 sum per tensor
+    safetensors_io.py summary FILE        print name, dtype, shape and float64 sum per tensor
+    safetensors_io.py export FILE DIR     write each tensor as DIR/<name>.npy (numpy.save);
+                                          with python3-torch installed, each goes through
+                                          torch.from_numpy(...).numpy() on the way
 """
 import json
 import struct
@@ -49,7 +52,23 @@ def save(path, tensors, metadata=None):
         f.write(struct.pack("<Q", len(text)) + text + b"".join(chunks))
 
 
+def export(path, directory):
+    tensors, _ = load(path)
+    try:
+        import torch
+    except ImportError:
+        torch = None
+    for name, array in tensors.items():
+        if torch is not None:
+            array = torch.from_numpy(array).numpy()
+        np.save(f"{directory}/{name}.npy", array)
+    print(f"exported {len(tensors)} tensors" + (" through torch" if torch else ""))
+
+
 if __name__ == "__main__":
+    if len(sys.argv) == 4 and sys.argv[1] == "export":
+        export(sys.argv[2], sys.argv[3])
+        sys.exit(0)
     if len(sys.argv) != 3 or sys.argv[1] != "summary":
         print(__doc__)
         sys.exit(2)
