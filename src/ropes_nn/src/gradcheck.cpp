@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <sstream>
+#include <string>
 
 #include "ropes_nn/module.hpp"
 #include "ropes_nn/ops.hpp"
@@ -29,6 +31,47 @@ std::vector<float> projection_weights(const Shape& shape, std::uint64_t seed) {
   return w;
 }
 
+// Central differences of `evaluate` (the projected output) in every entry of `tensors`,
+// perturbed in place and restored, compared with `analytic`; `names` label the report.
+GradCheckResult compare_with_finite_differences(std::vector<Tensor>& tensors,
+                                                const std::vector<std::string>& names,
+                                                const std::vector<Tensor>& analytic,
+                                                const std::function<double()>& evaluate,
+                                                const GradCheckOptions& options) {
+  GradCheckResult result;
+  int failures = 0;
+  std::ostringstream report;
+  for (std::size_t k = 0; k < tensors.size(); ++k) {
+    float* values = tensors[k].mutable_data();
+    const float* a = analytic[k].data();
+    for (std::int64_t i = 0; i < tensors[k].numel(); ++i) {
+      const float saved = values[i];
+      const float up_value = saved + static_cast<float>(options.step);
+      const float down_value = saved - static_cast<float>(options.step);
+      values[i] = up_value;
+      const double up = evaluate();
+      values[i] = down_value;
+      const double down = evaluate();
+      values[i] = saved;
+      // divide by the step the float values actually took
+      const double numeric = (up - down) / (static_cast<double>(up_value) - down_value);
+      const double error = std::abs(a[i] - numeric);
+      result.max_abs_error = std::max(result.max_abs_error, error);
+      if (!(error <= options.abs_tolerance + options.rel_tolerance * std::abs(numeric))) {
+        result.ok = false;
+        if (failures++ < 10) {
+          report << names[k] << " " << tensors[k].shape().str() << " element " << i << ": analytic "
+                 << a[i] << ", numeric " << numeric << "\n";
+        }
+      }
+    }
+  }
+  if (result.ok)
+    report << "max |analytic - numeric| = " << result.max_abs_error;
+  result.report = report.str();
+  return result;
+}
+
 }  // namespace
 
 GradCheckResult check_gradients(const TensorFunction& f, const std::vector<Tensor>& inputs,
@@ -44,41 +87,12 @@ GradCheckResult check_gradients(const TensorFunction& f, const std::vector<Tenso
   const Tensor weights(y.shape(), w);
   const std::vector<Tensor> analytic = grad({y}, leaves, {weights}, false, true);
 
-  // numeric: central differences, one entry at a time (grad mode stays on: f may itself
-  // take gradients, as check_second_gradients' f does)
-  GradCheckResult result;
-  int failures = 0;
-  std::ostringstream report;
-  for (std::size_t k = 0; k < leaves.size(); ++k) {
-    Tensor x = leaves[k];
-    float* values = x.mutable_data();
-    const float* a = analytic[k].data();
-    for (std::int64_t i = 0; i < x.numel(); ++i) {
-      const float saved = values[i];
-      values[i] = saved + static_cast<float>(options.step);
-      const double up = project(f(leaves), w);
-      values[i] = saved - static_cast<float>(options.step);
-      const double down = project(f(leaves), w);
-      values[i] = saved;
-      // divide by the step the float values actually took
-      const double h = (static_cast<double>(saved + static_cast<float>(options.step)) -
-                        static_cast<double>(saved - static_cast<float>(options.step)));
-      const double numeric = (up - down) / h;
-      const double error = std::abs(a[i] - numeric);
-      result.max_abs_error = std::max(result.max_abs_error, error);
-      if (!(error <= options.abs_tolerance + options.rel_tolerance * std::abs(numeric))) {
-        result.ok = false;
-        if (failures++ < 10) {
-          report << "input " << k << " " << x.shape().str() << " element " << i << ": analytic "
-                 << a[i] << ", numeric " << numeric << "\n";
-        }
-      }
-    }
-  }
-  if (result.ok)
-    report << "max |analytic - numeric| = " << result.max_abs_error;
-  result.report = report.str();
-  return result;
+  // numeric (grad mode stays on: f may itself take gradients, as check_second_gradients' f does)
+  std::vector<std::string> names;
+  for (std::size_t k = 0; k < leaves.size(); ++k)
+    names.push_back("input " + std::to_string(k));
+  return compare_with_finite_differences(
+      leaves, names, analytic, [&] { return project(f(leaves), w); }, options);
 }
 
 GradCheckResult check_second_gradients(const TensorFunction& f, const std::vector<Tensor>& inputs,
@@ -109,36 +123,8 @@ GradCheckResult check_module_gradients(Module& module, const Tensor& x,
   const std::vector<Tensor> analytic =
       grad({y}, wrt, {Tensor(y.shape(), w)}, false, /*allow_unused=*/true);
 
-  GradCheckResult result;
-  std::ostringstream report;
-  int failures = 0;
-  for (std::size_t k = 0; k < wrt.size(); ++k) {
-    float* values = wrt[k].mutable_data();
-    for (std::int64_t i = 0; i < wrt[k].numel(); ++i) {
-      const float saved = values[i];
-      const float up_value = saved + static_cast<float>(options.step);
-      const float down_value = saved - static_cast<float>(options.step);
-      values[i] = up_value;
-      const double up = project(module.forward(wrt[0]), w);
-      values[i] = down_value;
-      const double down = project(module.forward(wrt[0]), w);
-      values[i] = saved;
-      const double numeric = (up - down) / (static_cast<double>(up_value) - down_value);
-      const double error = std::abs(analytic[k].data()[i] - numeric);
-      result.max_abs_error = std::max(result.max_abs_error, error);
-      if (!(error <= options.abs_tolerance + options.rel_tolerance * std::abs(numeric))) {
-        result.ok = false;
-        if (failures++ < 10) {
-          report << names[k] << " element " << i << ": analytic " << analytic[k].data()[i]
-                 << ", numeric " << numeric << "\n";
-        }
-      }
-    }
-  }
-  if (result.ok)
-    report << "max |analytic - numeric| = " << result.max_abs_error;
-  result.report = report.str();
-  return result;
+  return compare_with_finite_differences(
+      wrt, names, analytic, [&] { return project(module.forward(wrt[0]), w); }, options);
 }
 
 }  // namespace ropes::nn
