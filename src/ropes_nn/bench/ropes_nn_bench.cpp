@@ -73,7 +73,10 @@ std::map<std::string, double> run_peer(bool quick, int threads) {
   }
   if (preload.empty())
     std::printf("note: libtcmalloc-minimal4 missing; PyTorch without it\n");
-  const std::string command = preload + "/usr/bin/python3 " + ROPES_NN_BENCH_DIR +
+  // the peer at its best: OPENBLAS_CORETYPE=Haswell (set on these machines for old
+  // OpenBLAS builds) is dropped for this command only
+  const std::string command = "env -u OPENBLAS_CORETYPE -u OPENBLAS_L2_SIZE " + preload +
+                              "/usr/bin/python3 " + ROPES_NN_BENCH_DIR +
                               "/torch_peer.py --threads " + std::to_string(threads) +
                               (quick ? " --quick" : "") + " 2>/dev/null";
   FILE* pipe = popen(command.c_str(), "r");
