@@ -1,0 +1,172 @@
+#include "ropes_sim/robot_model.hpp"
+
+#include <urdf_parser/urdf_parser.h>
+
+#include <fstream>
+#include <queue>
+#include <sstream>
+
+namespace ropes::sim {
+
+namespace {
+
+Eigen::Isometry3d to_isometry(const urdf::Pose& pose) {
+  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
+  X.linear() =
+      Eigen::Quaterniond(pose.rotation.w, pose.rotation.x, pose.rotation.y, pose.rotation.z)
+          .normalized()
+          .toRotationMatrix();
+  X.translation() = Eigen::Vector3d(pose.position.x, pose.position.y, pose.position.z);
+  return X;
+}
+
+Visual to_visual(const urdf::Visual& v, const std::string& source, const std::string& link) {
+  Visual out;
+  out.X_LV = to_isometry(v.origin);
+  if (v.material) {
+    out.rgba = Eigen::Vector4d(v.material->color.r, v.material->color.g, v.material->color.b,
+                               v.material->color.a);
+  }
+  if (!v.geometry)
+    throw ModelError(source + ": link '" + link + "' has a visual without geometry");
+  switch (v.geometry->type) {
+    case urdf::Geometry::BOX: {
+      const auto& box = dynamic_cast<const urdf::Box&>(*v.geometry);
+      out.kind = Visual::Kind::kBox;
+      out.box_size = Eigen::Vector3d(box.dim.x, box.dim.y, box.dim.z);
+      break;
+    }
+    case urdf::Geometry::CYLINDER: {
+      const auto& c = dynamic_cast<const urdf::Cylinder&>(*v.geometry);
+      out.kind = Visual::Kind::kCylinder;
+      out.radius = c.radius;
+      out.length = c.length;
+      break;
+    }
+    case urdf::Geometry::SPHERE:
+      out.kind = Visual::Kind::kSphere;
+      out.radius = dynamic_cast<const urdf::Sphere&>(*v.geometry).radius;
+      break;
+    case urdf::Geometry::MESH: {
+      const auto& m = dynamic_cast<const urdf::Mesh&>(*v.geometry);
+      out.kind = Visual::Kind::kMesh;
+      out.mesh_filename = m.filename;
+      out.mesh_scale = Eigen::Vector3d(m.scale.x, m.scale.y, m.scale.z);
+      break;
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+RobotModel RobotModel::load(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in)
+    throw ModelError(path.string() + ": cannot open the URDF file");
+  std::ostringstream text;
+  text << in.rdbuf();
+  return parse(text.str(), path.string(), path.parent_path());
+}
+
+RobotModel RobotModel::parse(const std::string& xml, const std::string& source,
+                             const std::filesystem::path& base_dir) {
+  const urdf::ModelInterfaceSharedPtr urdf = urdf::parseURDF(xml);
+  if (!urdf) {
+    throw ModelError(source +
+                     ": not a valid URDF (urdfdom could not parse it; its messages "
+                     "above say where)");
+  }
+  const urdf::LinkConstSharedPtr root = urdf->getRoot();
+  if (!root)
+    throw ModelError(source + ": the URDF has no root link");
+
+  RobotModel model;
+  model.name_ = urdf->getName();
+  model.base_dir_ = base_dir;
+  // links breadth first from the root, so every parent comes before its children
+  std::queue<std::pair<urdf::LinkConstSharedPtr, int>> queue;  // link, its parent joint
+  queue.push({root, -1});
+  while (!queue.empty()) {
+    const auto [link, parent_joint] = queue.front();
+    queue.pop();
+    const int index = static_cast<int>(model.links_.size());
+    Link out{link->name, {}, parent_joint};
+    for (const auto& v : link->visual_array)
+      out.visuals.push_back(to_visual(*v, source, link->name));
+    model.links_.push_back(std::move(out));
+    if (parent_joint >= 0)
+      model.joints_[static_cast<std::size_t>(parent_joint)].child_link = index;
+
+    for (const auto& j : link->child_joints) {
+      Joint joint;
+      joint.name = j->name;
+      joint.parent_link = index;
+      joint.X_PJ = to_isometry(j->parent_to_joint_origin_transform);
+      switch (j->type) {
+        case urdf::Joint::REVOLUTE:
+          joint.type = JointType::kRevolute;
+          break;
+        case urdf::Joint::CONTINUOUS:
+          joint.type = JointType::kContinuous;
+          break;
+        case urdf::Joint::PRISMATIC:
+          joint.type = JointType::kPrismatic;
+          break;
+        case urdf::Joint::FIXED:
+          joint.type = JointType::kFixed;
+          break;
+        default:
+          throw ModelError(source + ": joint '" + j->name +
+                           "' is floating or planar; expected revolute, continuous, prismatic "
+                           "or fixed");
+      }
+      if (joint.type != JointType::kFixed) {
+        const Eigen::Vector3d axis(j->axis.x, j->axis.y, j->axis.z);
+        if (!(axis.norm() > 1e-12)) {
+          throw ModelError(source + ": joint '" + j->name + "' has a zero axis");
+        }
+        joint.axis = axis.normalized();
+      }
+      if (j->limits) {
+        joint.lower = j->limits->lower;
+        joint.upper = j->limits->upper;
+      }
+      const int joint_index = static_cast<int>(model.joints_.size());
+      model.joints_.push_back(joint);
+      queue.push({urdf->getLink(j->child_link_name), joint_index});
+    }
+  }
+  // joints in the order of their child links; movable ones are the coordinates
+  std::vector<Joint> ordered;
+  for (Link& link : model.links_) {
+    if (link.parent_joint < 0)
+      continue;
+    ordered.push_back(model.joints_[static_cast<std::size_t>(link.parent_joint)]);
+    link.parent_joint = static_cast<int>(ordered.size()) - 1;
+  }
+  model.joints_ = std::move(ordered);
+  for (std::size_t i = 0; i < model.joints_.size(); ++i) {
+    if (model.joints_[i].type != JointType::kFixed)
+      model.movable_.push_back(static_cast<int>(i));
+  }
+  return model;
+}
+
+int RobotModel::link_index(const std::string& name) const {
+  for (std::size_t i = 0; i < links_.size(); ++i) {
+    if (links_[i].name == name)
+      return static_cast<int>(i);
+  }
+  throw ModelError("robot '" + name_ + "' has no link '" + name + "'");
+}
+
+int RobotModel::joint_index(const std::string& name) const {
+  for (std::size_t i = 0; i < joints_.size(); ++i) {
+    if (joints_[i].name == name)
+      return static_cast<int>(i);
+  }
+  throw ModelError("robot '" + name_ + "' has no joint '" + name + "'");
+}
+
+}  // namespace ropes::sim

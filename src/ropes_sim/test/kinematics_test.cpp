@@ -1,0 +1,143 @@
+#include "ropes_sim/kinematics.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <string>
+
+#include "ropes_nn/philox.hpp"
+
+namespace ropes::sim {
+namespace {
+
+const std::filesystem::path kPandaUrdf = std::filesystem::path(ROPES_SIM_URDF_DIR) / "panda.urdf";
+const std::filesystem::path kPandaGym =
+    std::filesystem::path(ROPES_SHARED_ASSETS) / "franka_panda" / "panda.urdf";
+
+// The witness: the Panda's forward kinematics from Craig's modified DH table, written here
+// independently of the URDF and of Simbody. Frame i = frame i-1 * RotX(alpha) TransX(a)
+// RotZ(theta_i) TransZ(d); row 7 is the flange (panda_link8).
+struct DhRow {
+  double a, d, alpha;
+};
+constexpr DhRow kPandaDh[8] = {{0, 0.333, 0},
+                               {0, 0, -M_PI / 2},
+                               {0, 0.316, M_PI / 2},
+                               {0.0825, 0, M_PI / 2},
+                               {-0.0825, 0.384, -M_PI / 2},
+                               {0, 0, M_PI / 2},
+                               {0.088, 0, M_PI / 2},
+                               {0, 0.107, 0}};
+
+std::vector<Eigen::Isometry3d> dh_frames(const std::vector<double>& q) {
+  std::vector<Eigen::Isometry3d> frames;
+  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
+  for (int i = 0; i < 8; ++i) {
+    const double theta = i < 7 ? q[static_cast<std::size_t>(i)] : 0.0;
+    X = X * Eigen::AngleAxisd(kPandaDh[i].alpha, Eigen::Vector3d::UnitX()) *
+        Eigen::Translation3d(kPandaDh[i].a, 0, 0) *
+        Eigen::AngleAxisd(theta, Eigen::Vector3d::UnitZ()) *
+        Eigen::Translation3d(0, 0, kPandaDh[i].d);
+    frames.push_back(X);
+  }
+  return frames;
+}
+
+std::vector<double> random_configuration(const RobotModel& model, nn::PhiloxStream& rng) {
+  std::vector<double> q;
+  for (int j : model.movable_joints()) {
+    const Joint& joint = model.joints()[static_cast<std::size_t>(j)];
+    q.push_back(joint.lower + (joint.upper - joint.lower) * rng.uniform_double());
+  }
+  return q;
+}
+
+TEST(RobotModel, LoadsTheWorkspacePandaWithSevenCoordinates) {
+  const RobotModel panda = RobotModel::load(kPandaUrdf);
+  EXPECT_EQ(panda.links()[0].name, "panda_link0");
+  ASSERT_EQ(panda.movable_joints().size(), 7u);
+  for (int i = 0; i < 7; ++i) {
+    EXPECT_EQ(
+        panda
+            .joints()[static_cast<std::size_t>(panda.movable_joints()[static_cast<std::size_t>(i)])]
+            .name,
+        "panda_joint" + std::to_string(i + 1));
+  }
+  const Joint& j4 = panda.joints()[static_cast<std::size_t>(panda.joint_index("panda_joint4"))];
+  EXPECT_DOUBLE_EQ(j4.lower, -3.0718);
+  EXPECT_DOUBLE_EQ(j4.upper, -0.0698);
+  EXPECT_FALSE(
+      panda.links()[static_cast<std::size_t>(panda.link_index("panda_link1"))].visuals.empty());
+}
+
+TEST(KinematicsGolden, SimbodyMatchesTheModifiedDhTableOn1000Configurations) {
+  const RobotModel panda = RobotModel::load(kPandaUrdf);
+  Kinematics fk(panda);
+  nn::PhiloxStream rng(2024, 0);
+  double worst_position = 0, worst_rotation = 0;
+  for (int trial = 0; trial < 1000; ++trial) {
+    const std::vector<double> q = random_configuration(panda, rng);
+    fk.set_positions(q);
+    const std::vector<Eigen::Isometry3d> dh = dh_frames(q);
+    for (int i = 0; i < 8; ++i) {
+      const Eigen::Isometry3d X =
+          fk.link_pose(panda.link_index("panda_link" + std::to_string(i + 1)));
+      worst_position = std::max(
+          worst_position, (X.translation() - dh[static_cast<std::size_t>(i)].translation()).norm());
+      worst_rotation =
+          std::max(worst_rotation, (X.linear() - dh[static_cast<std::size_t>(i)].linear()).norm());
+    }
+  }
+  EXPECT_LT(worst_position, 1e-9);
+  EXPECT_LT(worst_rotation, 1e-9);
+  std::printf("worst link position error %.3g m, rotation %.3g\n", worst_position, worst_rotation);
+}
+
+// The Panda-Gym asset (../shared, when present) has the same kinematics: its flange must
+// follow the workspace model's in every configuration.
+TEST(KinematicsGolden, PandaGymAssetHasTheSameKinematics) {
+  if (!std::filesystem::exists(kPandaGym))
+    GTEST_SKIP() << kPandaGym << " is not there";
+  const RobotModel ours = RobotModel::load(kPandaUrdf);
+  const RobotModel gym = RobotModel::load(kPandaGym);
+  ASSERT_GE(gym.movable_joints().size(), 7u);
+  Kinematics fk_ours(ours), fk_gym(gym);
+  nn::PhiloxStream rng(7, 0);
+  for (int trial = 0; trial < 100; ++trial) {
+    const std::vector<double> q = random_configuration(ours, rng);
+    std::vector<double> q_gym(gym.movable_joints().size(), 0.0);  // fingers closed
+    std::copy(q.begin(), q.end(), q_gym.begin());
+    fk_ours.set_positions(q);
+    fk_gym.set_positions(q_gym);
+    const Eigen::Vector3d a = fk_ours.link_pose(ours.link_index("panda_link8")).translation();
+    const Eigen::Vector3d b = fk_gym.link_pose(gym.link_index("panda_link8")).translation();
+    ASSERT_LT((a - b).norm(), 1e-9) << "trial " << trial;
+  }
+}
+
+TEST(RobotModel, RefusesBadInputNamingTheFile) {
+  try {
+    RobotModel::load("/nonexistent/robot.urdf");
+    ADD_FAILURE() << "no exception";
+  } catch (const ModelError& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/robot.urdf: cannot open"),
+              std::string::npos);
+  }
+  try {
+    RobotModel::parse("<robot name='x'><link name='a'/><joint name='j' type='revolute'>",
+                      "bad.urdf");
+    ADD_FAILURE() << "no exception";
+  } catch (const ModelError& e) {
+    EXPECT_NE(std::string(e.what()).find("bad.urdf: not a valid URDF"), std::string::npos)
+        << e.what();
+  }
+  const RobotModel panda = RobotModel::load(kPandaUrdf);
+  EXPECT_THROW(panda.link_index("panda_link99"), ModelError);
+  Kinematics fk(panda);
+  EXPECT_THROW(fk.set_positions({0.0, 1.0}), std::invalid_argument);
+  EXPECT_THROW(fk.set_positions({0, 0, 0, NAN, 0, 0, 0}), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace ropes::sim
