@@ -1,5 +1,6 @@
 #include "ropes_nn/adam.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -25,6 +26,7 @@ Adam::Adam(std::vector<Tensor> params, AdamOptions options)
                                   " is not a leaf tensor that requires grad");
     }
     m_.emplace_back(static_cast<std::size_t>(params_[i].numel()), 0.0f);
+    param_steps_.push_back(0);
     v_.emplace_back(static_cast<std::size_t>(params_[i].numel()), 0.0f);
   }
 }
@@ -39,7 +41,7 @@ void Adam::update(std::size_t i, const Tensor& grad) {
   const auto b2 = static_cast<float>(options_.beta2);
   const auto wd = static_cast<float>(options_.weight_decay);
   const auto eps = static_cast<float>(options_.eps);
-  const double t = static_cast<double>(steps_);
+  const double t = static_cast<double>(++param_steps_[i]);
   const auto step_size = static_cast<float>(options_.lr / (1.0 - std::pow(options_.beta1, t)));
   const auto correction2_sqrt = static_cast<float>(std::sqrt(1.0 - std::pow(options_.beta2, t)));
   float* w = p.mutable_data();
@@ -52,6 +54,11 @@ void Adam::update(std::size_t i, const Tensor& grad) {
     v[k] = b2 * v[k] + (1.0f - b2) * gk * gk;
     w[k] -= step_size * m[k] / (std::sqrt(v[k]) / correction2_sqrt + eps);
   }
+}
+
+void Adam::set_steps(std::int64_t steps) {
+  steps_ = steps;
+  std::fill(param_steps_.begin(), param_steps_.end(), steps);
 }
 
 void Adam::step(const std::vector<Tensor>& grads) {

@@ -20,7 +20,7 @@ struct Pool {
     if (const char* env = std::getenv("ROPES_POOL_MAX_BYTES")) {
       return static_cast<std::size_t>(std::strtoull(env, nullptr, 10));
     }
-    return std::size_t{8} << 30;
+    return std::size_t{4} << 30;
   }();
 
   ~Pool() {

@@ -9,6 +9,7 @@
 
 #include "ropes_nn/ops.hpp"
 #include "ropes_nn/parallel.hpp"
+#include "tensor_impl.hpp"
 
 namespace ropes::nn {
 
@@ -55,7 +56,7 @@ class GroupNormNode final : public Node {
     if (grad_mode_enabled()) {
       // create_graph: differentiate the composed form, keeping the result differentiable
       const Tensor y = composed_group_norm(x, static_cast<int>(l_.groups), gamma, beta, eps_);
-      return grad({y}, {x, gamma, beta}, {gy}, /*create_graph=*/true, /*allow_unused=*/true);
+      return grad_stopping_at_inputs({y}, {x, gamma, beta}, {gy}, /*create_graph=*/true);
     }
     return fused_backward(gy);
   }
@@ -70,7 +71,8 @@ class GroupNormNode final : public Node {
     const float* gp = gy.data();
     const float* gamma = inputs[1].data();
     Buffer dx(static_cast<std::size_t>(x.numel()));
-    const int chunks = static_cast<int>(std::min<std::int64_t>(num_threads(), l_.n));
+    const int chunks =
+        static_cast<int>(std::max<std::int64_t>(1, std::min<std::int64_t>(num_threads(), l_.n)));
     std::vector<std::vector<double>> dgamma(static_cast<std::size_t>(chunks),
                                             std::vector<double>(static_cast<std::size_t>(l_.c)));
     std::vector<std::vector<double>> dbeta = dgamma;
@@ -148,6 +150,8 @@ Tensor group_norm(const Tensor& x, int groups, const Tensor& gamma, const Tensor
          std::to_string(c) + "] each");
   }
   const Layout l{n, c, groups, c / groups, n * c == 0 ? 0 : x.numel() / (n * c)};
+  if (x.numel() == 0)
+    fail("x " + x.shape().str() + " is empty");
 
   // statistics per (sample, group) in double, then the normalised, affine output
   std::vector<float> mean(static_cast<std::size_t>(n * groups));

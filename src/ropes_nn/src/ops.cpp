@@ -561,6 +561,9 @@ Tensor sum(const Tensor& x, const std::vector<int>& axes, bool keepdim) {
   std::vector<std::int64_t> kept_dims = x.shape().dims(), out_dims;
   for (int axis : axes) {
     const int a = normalize_axis(axis, rank, "sum");
+    if (reduce[static_cast<std::size_t>(4 - rank + a)]) {
+      throw std::invalid_argument("sum: axis " + std::to_string(axis) + " is given twice");
+    }
     reduce[static_cast<std::size_t>(4 - rank + a)] = true;
     kept_dims[static_cast<std::size_t>(a)] = 1;
   }
@@ -635,7 +638,27 @@ Tensor bce_with_logits(const Tensor& logits, const Tensor& targets) {
     throw std::invalid_argument("bce_with_logits: logits " + logits.shape().str() +
                                 " and targets " + targets.shape().str() + " differ");
   }
-  return mean(add(sub(relu(logits), mul(logits, targets)), log1p(exp(neg(abs(logits))))));
+  // value: mean(max(z, 0) - z y + log1p(exp(-|z|))), in double
+  const float* z = logits.data();
+  const float* y = targets.data();
+  double total = 0;
+  for (std::int64_t i = 0; i < logits.numel(); ++i) {
+    const double zi = z[i];
+    total += std::max(zi, 0.0) - zi * y[i] + std::log1p(std::exp(-std::abs(zi)));
+  }
+  const float n = static_cast<float>(logits.numel());
+  // gradient (sigmoid(z) - y) / N and -z / N, as PyTorch, also at z == 0 (where the
+  // composed form's relu' and abs' would both be 0); written with differentiable ops
+  return record(Shape{}, Buffer(1, static_cast<float>(total / n)), {logits, targets},
+                "bce_with_logits", [n](const Grads& in, const Tensor& g) {
+                  Grads r(2);
+                  if (in[0].requires_grad()) {
+                    r[0] = mul(mul_scalar(sub(sigmoid(in[0]), in[1]), 1.0f / n), g);
+                  }
+                  if (in[1].requires_grad())
+                    r[1] = mul(mul_scalar(neg(in[0]), 1.0f / n), g);
+                  return r;
+                });
 }
 
 }  // namespace ropes::nn

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <exception>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -52,10 +53,20 @@ void parallel_for(std::int64_t n,
     body(0, 0, n);
     return;
   }
+  // an exception may not leave an OpenMP region: keep the first, rethrow it after
+  std::exception_ptr failure;
 #pragma omp parallel for num_threads(chunks) schedule(static, 1)
   for (int c = 0; c < chunks; ++c) {
-    body(c, n * c / chunks, n * (c + 1) / chunks);
+    try {
+      body(c, n * c / chunks, n * (c + 1) / chunks);
+    } catch (...) {
+#pragma omp critical(ropes_parallel_for_failure)
+      if (!failure)
+        failure = std::current_exception();
+    }
   }
+  if (failure)
+    std::rethrow_exception(failure);
 }
 
 }  // namespace ropes::nn

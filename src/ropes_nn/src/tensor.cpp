@@ -234,9 +234,11 @@ Tensor make_op_result(const Shape& shape, Buffer values, std::shared_ptr<Node> n
 
 // --- the reverse sweep ----------------------------------------------------------------------
 
-std::vector<Tensor> grad(const std::vector<Tensor>& outputs, const std::vector<Tensor>& inputs,
-                         const std::vector<Tensor>& grad_outputs, bool create_graph,
-                         bool allow_unused) {
+namespace {
+
+std::vector<Tensor> grad_impl(const std::vector<Tensor>& outputs, const std::vector<Tensor>& inputs,
+                              const std::vector<Tensor>& grad_outputs, bool create_graph,
+                              bool allow_unused, bool stop_at_inputs) {
   if (!grad_outputs.empty() && grad_outputs.size() != outputs.size()) {
     throw std::invalid_argument("grad: " + std::to_string(grad_outputs.size()) +
                                 " grad_outputs for " + std::to_string(outputs.size()) +
@@ -270,6 +272,10 @@ std::vector<Tensor> grad(const std::vector<Tensor>& outputs, const std::vector<T
       it->second = add(it->second, seed);
   }
 
+  std::unordered_set<const TensorImpl*> asked;
+  for (const Tensor& in : inputs)
+    asked.insert(in.id());
+
   // topological order of the tensors that need a gradient (iterative depth-first search)
   std::vector<Tensor> order;
   std::unordered_set<const TensorImpl*> visited;
@@ -285,7 +291,8 @@ std::vector<Tensor> grad(const std::vector<Tensor>& outputs, const std::vector<T
     while (!stack.empty()) {
       Frame& top = stack.back();
       const std::shared_ptr<Node>& node = top.tensor.grad_fn();
-      if (node && top.next_input < node->inputs.size()) {
+      const bool expand = !(stop_at_inputs && asked.count(top.tensor.id()));
+      if (node && expand && top.next_input < node->inputs.size()) {
         const Tensor in = node->inputs[top.next_input++];
         if (in.requires_grad() && visited.insert(in.id()).second)
           stack.push_back({in, 0});
@@ -318,7 +325,7 @@ std::vector<Tensor> grad(const std::vector<Tensor>& outputs, const std::vector<T
   for (auto it = order.rbegin(); it != order.rend(); ++it) {
     const Tensor& t = *it;
     const std::shared_ptr<Node>& node = t.grad_fn();
-    if (!node || !needed.count(t.id()))
+    if (!node || !needed.count(t.id()) || (stop_at_inputs && asked.count(t.id())))
       continue;
     auto found = grads.find(t.id());
     if (found == grads.end())
@@ -350,6 +357,21 @@ std::vector<Tensor> grad(const std::vector<Tensor>& outputs, const std::vector<T
     }
   }
   return result;
+}
+
+}  // namespace
+
+std::vector<Tensor> grad(const std::vector<Tensor>& outputs, const std::vector<Tensor>& inputs,
+                         const std::vector<Tensor>& grad_outputs, bool create_graph,
+                         bool allow_unused) {
+  return grad_impl(outputs, inputs, grad_outputs, create_graph, allow_unused, false);
+}
+
+std::vector<Tensor> grad_stopping_at_inputs(const std::vector<Tensor>& outputs,
+                                            const std::vector<Tensor>& inputs,
+                                            const std::vector<Tensor>& grad_outputs,
+                                            bool create_graph) {
+  return grad_impl(outputs, inputs, grad_outputs, create_graph, true, true);
 }
 
 }  // namespace ropes::nn

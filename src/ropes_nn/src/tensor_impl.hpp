@@ -21,6 +21,13 @@ namespace ropes::nn {
 // A tensor that views `source`'s storage with another shape; records `node` (whose
 // backward must undo the view) when grad mode is on and `source` requires grad.
 Tensor share_storage(const Tensor& source, const Shape& shape, std::shared_ptr<Node> node);
+// grad() that treats `inputs` as leaves: it neither runs their grad_fn nor looks past them,
+// so it returns only the gradient through paths that do not pass through another input
+// (what a node's own backward needs; the outer sweep handles the inputs' history).
+std::vector<Tensor> grad_stopping_at_inputs(const std::vector<Tensor>& outputs,
+                                            const std::vector<Tensor>& inputs,
+                                            const std::vector<Tensor>& grad_outputs,
+                                            bool create_graph);
 // Adds to the benchmark FLOP counter (flop_count() in ops.hpp).
 void add_flops(std::uint64_t flops);
 }  // namespace ropes::nn

@@ -168,6 +168,14 @@ TEST(GradCheck, SecondOrderThroughConvolutionsAndGroupNorm) {
                       [](const V& v) { return square(conv_transpose2d(v[0], v[1], 2)); }, {x, wt});
   expect_second_order("group_norm", [](const V& v) { return group_norm(v[0], 1, v[1], v[2]); },
                       {x, gamma, beta});
+  expect_second_order("group_norm, 2 groups, input computed from its own scale",
+                      [](const V& v) {
+                        // gamma also produces the input: group norm's differentiable backward
+                        // must count the path through x once (the outer sweep does)
+                        const Tensor h = mul(v[0], reshape(v[1], Shape{1, 2, 1, 1}));
+                        return square(group_norm(h, 2, v[1], v[2]));
+                      },
+                      {x, gamma, beta});
 }
 
 TEST(GradCheck, EveryModule) {

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <stdexcept>
 #include <vector>
 
 #include "ropes_nn/layers.hpp"
@@ -69,6 +70,14 @@ TEST(Parallel, ParallelForCoversTheRangeInFixedChunks) {
   });
   EXPECT_EQ(owner, (std::vector<int>{0, 0, 0, 1, 1, 1, 2, 2, 2, 2}));
   EXPECT_THROW(set_num_threads(0), std::invalid_argument);
+  // an exception in a chunk reaches the caller instead of terminating the process
+  set_num_threads(2);
+  EXPECT_THROW(parallel_for(4,
+                            [](int chunk, std::int64_t, std::int64_t) {
+                              if (chunk == 1)
+                                throw std::runtime_error("chunk 1 failed");
+                            }),
+               std::runtime_error);
   set_num_threads(saved);
 }
 

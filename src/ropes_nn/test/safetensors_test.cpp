@@ -153,6 +153,13 @@ TEST(Safetensors, RefusesMalformedFilesNamingTheProblem) {
             std::string::npos);
   EXPECT_NE(parse_error(file_with(R"({"__metadata__":{"k":1}})", 0)).find("is not a string"),
             std::string::npos);
+  // hostile JSON: a shape nested 200000 deep (json::dump() would recurse past the stack)
+  // and a number beyond double range (nlohmann throws out_of_range, not parse_error)
+  std::string deep = R"({"a":{"dtype":"F32","shape":)";
+  deep += std::string(200000, '[') + std::string(200000, ']') + R"(,"data_offsets":[0,0]}})";
+  EXPECT_NE(parse_error(file_with(deep, 0)).find("tensor 'a' has shape [?]"), std::string::npos);
+  EXPECT_NE(parse_error(file_with(R"({"a":1e999})", 0)).find("the header is not JSON"),
+            std::string::npos);
   // a header length far beyond the file or the limit is refused before any allocation
   std::vector<std::uint8_t> huge = {0, 0, 0, 0, 0, 0, 0, 0x7f};
   EXPECT_NE(parse_error(huge).find("exceeds the limit"), std::string::npos);

@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "ropes_nn/adam.hpp"
 #include "ropes_nn/ops.hpp"
 
 namespace ropes::nn {
@@ -60,6 +61,10 @@ TEST(Tensor, RejectsBadShapesAndValuesWithBothSides) {
             }).find("axis 2 is out of range"),
             std::string::npos);
   EXPECT_NE(error_of([] {
+              mean(Tensor::zeros(Shape{2, 3}), {1, -1});
+            }).find("given twice"),
+            std::string::npos);
+  EXPECT_NE(error_of([] {
               slice(Tensor::zeros(Shape{2, 3}), 1, 2, 5);
             }).find("[2, 5) is not inside axis 1"),
             std::string::npos);
@@ -87,6 +92,10 @@ TEST(Ops, ForwardValuesMatchHandComputation) {
   EXPECT_FLOAT_EQ(bce_with_logits(Tensor::zeros(Shape{2}), Tensor(Shape{2}, {0, 1})).item(),
                   std::log(2.0f));
   EXPECT_NEAR(bce_with_logits(Tensor::scalar(30.0f), Tensor::scalar(1.0f)).item(), 9.4e-14, 1e-15);
+  // at a logit of exactly 0 the gradient is (sigmoid(0) - y) / N, as PyTorch's
+  const Tensor z = Tensor::zeros(Shape{2}, true);
+  EXPECT_EQ(grad({bce_with_logits(z, Tensor(Shape{2}, {0.0f, 1.0f}))}, {z})[0].to_vector(),
+            (std::vector<float>{0.25f, -0.25f}));
 }
 
 // conv shapes and a value worked by hand
@@ -189,6 +198,19 @@ TEST(Autograd, ReportsMisuseClearly) {
             std::string::npos);
   EXPECT_NE(error_of([] { Tensor::ones(Shape{1}).backward(); }).find("does not depend"),
             std::string::npos);
+}
+
+// a parameter skipped in a step keeps its own bias-correction count: its first update is the
+// textbook first Adam step, lr * g / (|g| + eps) (hand-worked; PyTorch counts per parameter)
+TEST(Adam, BiasCorrectionCountsEachParametersOwnUpdates) {
+  Tensor a = Tensor::scalar(1.0f, true), b = Tensor::scalar(1.0f, true);
+  Adam adam({a, b}, AdamOptions{0.1});
+  adam.step({Tensor::scalar(0.5f), Tensor()});
+  EXPECT_NEAR(a.item(), 0.9f, 1e-6);
+  EXPECT_EQ(b.item(), 1.0f);
+  adam.step({Tensor::scalar(0.5f), Tensor::scalar(0.5f)});
+  EXPECT_NEAR(b.item(), 0.9f, 1e-6);
+  EXPECT_EQ(adam.steps(), 2);
 }
 
 TEST(Autograd, NoGraphIsRecordedWithGradModeOff) {

@@ -31,7 +31,8 @@ class Adam {
   /// v = b2 v + (1 - b2) g^2; p -= lr / (1 - b1^t) * m / (sqrt(v) / sqrt(1 - b2^t) + eps).
   void step(const std::vector<Tensor>& grads);
   /// step() with the gradients accumulated in the parameters (Tensor::grad()), which are
-  /// then cleared. A parameter without a gradient is skipped, as PyTorch does.
+  /// then cleared. A parameter without a gradient is skipped and its own update count (the
+  /// t of its bias correction) does not advance, as in PyTorch.
   void step();
 
   std::int64_t steps() const { return steps_; }
@@ -40,8 +41,8 @@ class Adam {
   /// First and second moments, one buffer per parameter (for checkpoints).
   std::vector<std::vector<float>>& first_moments() { return m_; }
   std::vector<std::vector<float>>& second_moments() { return v_; }
-  /// Restores the step count of a checkpoint.
-  void set_steps(std::int64_t steps) { steps_ = steps; }
+  /// Restores the step count of a checkpoint (every parameter's update count with it).
+  void set_steps(std::int64_t steps);
 
  private:
   void update(std::size_t i, const Tensor& grad);
@@ -49,6 +50,7 @@ class Adam {
   std::vector<Tensor> params_;
   AdamOptions options_;
   std::vector<std::vector<float>> m_, v_;
+  std::vector<std::int64_t> param_steps_;  // updates each parameter received (bias correction)
   std::int64_t steps_ = 0;
 };
 
@@ -62,7 +64,9 @@ double clip_grad_norm(std::vector<Tensor>& grads, double max_norm);
 /// is clipped to `clip_norm` (0: no clipping) and applied by `optimizer`. With
 /// weights[i] = size_i / batch size this is the gradient of the whole batch's mean loss.
 /// Returns sum_i weights[i] * loss_i. Throws std::invalid_argument for empty weights or a
-/// non-finite loss (naming the micro-batch), before changing any parameter.
+/// non-finite loss (naming the micro-batch), before changing any parameter. A parameter the
+/// loss does not depend on gets a zero gradient, so Adam's momentum and weight decay still
+/// move it (PyTorch, seeing no gradient, would skip it).
 double train_step(Adam& optimizer, const std::function<Tensor(std::size_t)>& micro_batch_loss,
                   const std::vector<double>& weights, double clip_norm = 0.0);
 

@@ -20,7 +20,7 @@ void* allocate(std::size_t bytes);
 /// Returns a block from allocate() (same `bytes`) to the pool.
 void deallocate(void* p, std::size_t bytes) noexcept;
 /// Bytes currently held by the pool's free lists, and the cap beyond which freed blocks go
-/// back to the system (default 8 GiB; ROPES_POOL_MAX_BYTES in the environment changes it).
+/// back to the system (default 4 GiB; ROPES_POOL_MAX_BYTES in the environment changes it).
 std::size_t cached_bytes();
 /// Frees every cached block.
 void release_cached();

@@ -17,8 +17,8 @@ using TensorFunction = std::function<Tensor(const std::vector<Tensor>& inputs)>;
 
 struct GradCheckOptions {
   double step = 1e-2;           ///< finite-difference step (float32 values: not too small)
-  double abs_tolerance = 2e-3;  ///< |analytic - numeric| <= abs + rel * |numeric| passes
-  double rel_tolerance = 2e-2;
+  double abs_tolerance = 1e-3;  ///< |analytic - numeric| <= abs + rel * |numeric| passes
+  double rel_tolerance = 1e-2;
   std::uint64_t seed = 1234;  ///< seeds the random projection of a non-scalar output
 };
 
