@@ -1,0 +1,154 @@
+#include "ropes_sim/intervention_sampler.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+namespace ropes::sim {
+namespace {
+
+const std::filesystem::path kDir = ROPES_SIM_DISTRIBUTIONS_DIR;
+
+// index of panda_joint<number> in the configs' joint list
+int joint(const InterventionSampler&, int number) {
+  return number - 1;
+}
+
+// Witness: the paper's tables, read off by hand (appendix tab:singleTrunc,
+// tab:twoCamera_trunc, tab:ood_distributions, tab:noise_models and the SEM equations).
+TEST(InterventionSamplerGolden, ConfigsCarryThePapersNumbers) {
+  const auto one = InterventionSampler::load(kDir / "1c_independent.json");
+  EXPECT_EQ(one.regime_names().size(), 7u);  // 1 + 2 x joints 2, 4, 6
+  EXPECT_EQ(one.regime_names()[5], "do(panda_joint6)=1");
+  const TruncatedNormal& j6 = one.interventions(joint(one, 6))[0];
+  EXPECT_EQ(j6.mu(), 2.25);
+  EXPECT_EQ(j6.sigma(), 0.5);
+  EXPECT_EQ(j6.lower(), 0.0);
+  EXPECT_EQ(j6.upper(), 3.0);
+  EXPECT_EQ(one.observational(joint(one, 2))->sigma(), 1.0);
+
+  const auto two = InterventionSampler::load(kDir / "2c_independent.json");
+  EXPECT_EQ(two.regime_names().size(), 13u);  // 1 + 2 x joints 1..6
+  EXPECT_EQ(two.interventions(joint(two, 4))[1].mu(), -0.9);
+  EXPECT_EQ(two.observational(joint(two, 1))->mu(), 1.2);
+
+  const auto ood = InterventionSampler::load(kDir / "2c_ood.json");
+  EXPECT_EQ(ood.observational(joint(ood, 4))->mu(), 0.8);
+  EXPECT_EQ(ood.observational(joint(ood, 6))->mu(), 0.5);
+  EXPECT_EQ(ood.interventions(joint(ood, 6))[0].mu(), 2.4);
+
+  const auto causal = InterventionSampler::load(kDir / "2c_causal.json");
+  EXPECT_EQ(causal.sem_weight(joint(causal, 3), joint(causal, 2)), 0.88);
+  EXPECT_EQ(causal.sem_weight(joint(causal, 6), joint(causal, 3)), 0.37);
+  EXPECT_FALSE(causal.observational(joint(causal, 3)).has_value());  // not a root
+}
+
+TEST(InterventionSampler, IndependentInterventionsChangeOneJointAndHoldTheRest) {
+  const auto s = InterventionSampler::load(kDir / "1c_independent.json");
+  const auto samples = s.sample_anchor(/*seed=*/3, /*anchor=*/41);
+  ASSERT_EQ(samples.size(), 7u);
+  const auto& base = samples[0];
+  EXPECT_EQ(base[0], 0.0);   // held
+  EXPECT_EQ(base[6], 0.79);  // held
+  for (std::size_t r = 1; r < samples.size(); ++r) {
+    const int changed = s.intervened_joints()[(r - 1) / 2];
+    for (int j = 0; j < 7; ++j) {
+      if (j != changed) {
+        EXPECT_EQ(samples[r][static_cast<std::size_t>(j)], base[static_cast<std::size_t>(j)]);
+      }
+    }
+  }
+  // an anchor's samples depend on (seed, anchor) only
+  EXPECT_EQ(s.sample_anchor(3, 41), samples);
+  EXPECT_NE(s.sample_anchor(3, 42), samples);
+}
+
+TEST(InterventionSampler, TheCausalModelRecomputesDescendantsWithTheSameNoise) {
+  const auto s = InterventionSampler::load(kDir / "2c_causal.json");
+  const auto samples = s.sample_anchor(5, 9);
+  const auto& base = samples[0];
+  // regime 3 = do(panda_joint2)=1: J3 = 0.88 J2 + e3 with e3 unchanged, J5 follows J3, J6 all
+  const auto& do2 = samples[3];
+  EXPECT_NEAR(do2[2] - 0.88 * do2[1], base[2] - 0.88 * base[1], 1e-12);
+  EXPECT_NEAR(do2[4] - 0.26 * do2[2], base[4] - 0.26 * base[2], 1e-12);
+  EXPECT_NEAR(do2[5] - (0.24 * do2[0] + 0.31 * do2[1] + 0.37 * do2[2] + 0.15 * do2[4]),
+              base[5] - (0.24 * base[0] + 0.31 * base[1] + 0.37 * base[2] + 0.15 * base[4]), 1e-12);
+  EXPECT_EQ(do2[0], base[0]);  // not a descendant
+  EXPECT_EQ(do2[3], base[3]);
+  // do(panda_joint4): J4 has no children
+  const auto& do4 = samples[7];
+  for (int j : {0, 1, 2, 4, 5})
+    EXPECT_EQ(do4[static_cast<std::size_t>(j)], base[static_cast<std::size_t>(j)]);
+}
+
+TEST(InterventionSampler, ObservationalDrawsHaveTheTableMoments) {
+  const auto s = InterventionSampler::load(kDir / "2c_independent.json");
+  const TruncatedNormal& j6 = *s.observational(joint(s, 6));
+  const int n = 20000;
+  double sum = 0;
+  for (int a = 0; a < n; ++a)
+    sum += s.sample_anchor(1, static_cast<std::uint64_t>(a))[0][5];
+  EXPECT_NEAR(sum / n, j6.mean(), 5 * std::sqrt(j6.variance() / n));
+}
+
+std::string load_error(const std::string& json) {
+  const auto path = std::filesystem::temp_directory_path() / "ropes_sampler_test.json";
+  std::ofstream(path) << json;
+  try {
+    InterventionSampler::load(path);
+  } catch (const ConfigError& e) {
+    std::filesystem::remove(path);
+    return e.what();
+  }
+  std::filesystem::remove(path);
+  return "";
+}
+
+TEST(InterventionSampler, RefusesBadConfigsNamingTheFieldAndValue) {
+  const std::string head = R"({"name": "t", "joints": ["a", "b"], "held": {"b": 0},)";
+  EXPECT_EQ(
+      load_error(
+          head +
+          R"("observational": {"a": {"mean": 0, "std": 1, "lower": -1, "upper": 1}}, "interventions": {}})"),
+      "");
+  EXPECT_NE(
+      load_error(
+          head +
+          R"("observational": {"c": {"mean": 0, "std": 1, "lower": -1, "upper": 1}}, "interventions": {}})")
+          .find("observational names joint 'c', which is not in joints"),
+      std::string::npos);
+  EXPECT_NE(
+      load_error(
+          head +
+          R"("observational": {"a": {"mean": 0, "std": 1, "lower": 1, "upper": 1}}, "interventions": {}})")
+          .find("observational.a: TruncatedNormal(mu=0, sigma=1, lower=1, upper=1)"),
+      std::string::npos);
+  EXPECT_NE(
+      load_error(
+          head +
+          R"("observational": {"a": {"mean": 0, "std": -2, "lower": -1, "upper": 1}}, "interventions": {}})")
+          .find("sigma=-2"),
+      std::string::npos);
+  EXPECT_NE(load_error(head + R"("observational": {}, "interventions": {}})")
+                .find("joint 'a' is neither held, observational nor a child in the sem"),
+            std::string::npos);
+  EXPECT_NE(
+      load_error(
+          head +
+          R"("observational": {"a": {"mean": 0, "std": 1, "lower": -1, "upper": 1}}, "interventions": {"a": []}})")
+          .find("interventions.a must list two distributions"),
+      std::string::npos);
+  EXPECT_NE(load_error("{not json").find("not JSON"), std::string::npos);
+  try {
+    InterventionSampler::load("/nonexistent/d.json");
+    ADD_FAILURE() << "no exception";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/d.json: cannot open"), std::string::npos);
+  }
+}
+
+}  // namespace
+}  // namespace ropes::sim
