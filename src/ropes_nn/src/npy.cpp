@@ -172,15 +172,13 @@ const char* dtype_descr(DType dtype) {
 // element count * itemsize, or a FileFormatError when it overflows
 std::uint64_t byte_count(const std::vector<std::int64_t>& shape, DType dtype,
                          const std::string& name) {
-  std::uint64_t count = dtype_size(dtype);
   for (std::int64_t d : shape) {
     if (d < 0)
       fail(name, "negative dimension " + std::to_string(d));
-    if (d != 0 &&
-        count > std::numeric_limits<std::uint64_t>::max() / static_cast<std::uint64_t>(d)) {
-      fail(name, "the array's byte count overflows 64 bits");
-    }
-    count *= static_cast<std::uint64_t>(d);
+  }
+  std::uint64_t count = 0;
+  if (!checked_byte_count(dtype, shape, &count)) {
+    fail(name, "the array's byte count overflows 64 bits");
   }
   return count;
 }
@@ -224,6 +222,21 @@ const char* dtype_name(DType dtype) {
       return "f64";
   }
   return "?";
+}
+
+bool checked_byte_count(DType dtype, const std::vector<std::int64_t>& shape, std::uint64_t* bytes) {
+  std::uint64_t count = dtype_size(dtype);
+  for (std::int64_t d : shape) {
+    if (d < 0)
+      return false;
+    if (d != 0 &&
+        count > std::numeric_limits<std::uint64_t>::max() / static_cast<std::uint64_t>(d)) {
+      return false;
+    }
+    count *= static_cast<std::uint64_t>(d);
+  }
+  *bytes = count;
+  return true;
 }
 
 std::int64_t NpyArray::element_count() const {

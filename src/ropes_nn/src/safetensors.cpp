@@ -75,20 +75,6 @@ bool parse_dtype(const std::string& code, DType* out) {
   return false;
 }
 
-// bytes of an array with this dtype and shape; false when it overflows
-bool byte_size(DType dtype, const std::vector<std::int64_t>& shape, std::uint64_t* out) {
-  std::uint64_t n = dtype_size(dtype);
-  for (std::int64_t d : shape) {
-    if (d < 0)
-      return false;
-    if (d != 0 && n > UINT64_MAX / static_cast<std::uint64_t>(d))
-      return false;
-    n *= static_cast<std::uint64_t>(d);
-  }
-  *out = n;
-  return true;
-}
-
 }  // namespace
 
 const NpyArray* Safetensors::find(const std::string& name) const {
@@ -111,7 +97,7 @@ std::vector<std::uint8_t> serialize_safetensors(const Safetensors& file) {
                                   "' is empty, reserved or repeated");
     }
     std::uint64_t bytes = 0;
-    if (!byte_size(array.dtype, array.shape, &bytes) || bytes != array.data.size()) {
+    if (!checked_byte_count(array.dtype, array.shape, &bytes) || bytes != array.data.size()) {
       throw std::invalid_argument("serialize_safetensors: tensor '" + name + "' has " +
                                   std::to_string(array.data.size()) +
                                   " data bytes, which do not match its shape");
@@ -209,7 +195,7 @@ Safetensors parse_safetensors(const std::uint8_t* bytes, std::size_t size,
     e.begin = offsets[0].get<std::uint64_t>();
     e.end = offsets[1].get<std::uint64_t>();
     std::uint64_t nbytes = 0;
-    if (!byte_size(e.array.dtype, e.array.shape, &nbytes) || e.end < e.begin ||
+    if (!checked_byte_count(e.array.dtype, e.array.shape, &nbytes) || e.end < e.begin ||
         e.end - e.begin != nbytes) {
       fail(name, where + " has data_offsets " + describe(offsets) + " for a " +
                      dtype_code(e.array.dtype) + " " + describe(shape) + " tensor of " +

@@ -27,6 +27,10 @@ enum class DType { kU8, kI32, kI64, kF32, kF64 };
 std::size_t dtype_size(DType dtype);
 /// "u8", "i32", "i64", "f32" or "f64".
 const char* dtype_name(DType dtype);
+/// Bytes of an array of `dtype` and `shape` into `bytes`; false (and `bytes` untouched) for
+/// a negative dimension or a count that overflows 64 bits. Both file readers bound their
+/// allocations with it.
+bool checked_byte_count(DType dtype, const std::vector<std::int64_t>& shape, std::uint64_t* bytes);
 
 /// An n-dimensional array as stored in a file: element type, shape and the raw
 /// little-endian bytes in C (row-major) order. data.size() == element_count() * itemsize.
