@@ -123,4 +123,13 @@ Eigen::Isometry3d Kinematics::link_pose(int link) const {
           .getBodyTransform(impl_->state));
 }
 
+std::vector<Eigen::Isometry3d> Kinematics::link_poses() const {
+  std::vector<Eigen::Isometry3d> poses;
+  const int n = static_cast<int>(impl_->model.links().size());
+  poses.reserve(static_cast<std::size_t>(n));
+  for (int link = 0; link < n; ++link)
+    poses.push_back(link_pose(link));
+  return poses;
+}
+
 }  // namespace ropes::sim

@@ -84,6 +84,7 @@ RobotModel RobotModel::parse(const std::string& xml, const std::string& source,
   RobotModel model;
   model.name_ = urdf->getName();
   model.base_dir_ = base_dir;
+  model.source_ = source;
   // links breadth first from the root, so every parent comes before its children
   std::queue<std::pair<urdf::LinkConstSharedPtr, int>> queue;  // link, its parent joint
   queue.push({root, -1});

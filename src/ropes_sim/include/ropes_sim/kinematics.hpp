@@ -29,6 +29,8 @@ class Kinematics {
 
   /// X_WL: the pose of link `link` in the world (root link) frame, for the last positions.
   Eigen::Isometry3d link_pose(int link) const;
+  /// X_WL of every link, in model.links() order (what Renderer::render takes).
+  std::vector<Eigen::Isometry3d> link_poses() const;
 
   const RobotModel& model() const;
 

@@ -72,6 +72,8 @@ class RobotModel {
   int joint_index(const std::string& name) const;
   /// Directory of the URDF file (mesh paths are relative to it).
   const std::filesystem::path& base_dir() const { return base_dir_; }
+  /// The URDF file (or the `source` given to parse) the model came from, for messages.
+  const std::string& source() const { return source_; }
 
  private:
   std::string name_;
@@ -79,6 +81,7 @@ class RobotModel {
   std::vector<Joint> joints_;
   std::vector<int> movable_;
   std::filesystem::path base_dir_;
+  std::string source_;
 };
 
 }  // namespace ropes::sim

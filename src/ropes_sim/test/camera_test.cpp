@@ -1,0 +1,109 @@
+#include "ropes_sim/camera.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace ropes::sim {
+namespace {
+
+// The witness: the eye on a sphere about the target, written with spherical coordinates
+// rather than the rotations camera.cpp composes.
+Eigen::Vector3d spherical_eye(const Camera& c) {
+  const double yaw = c.yaw_deg * M_PI / 180, pitch = c.pitch_deg * M_PI / 180;
+  return c.target + c.distance * Eigen::Vector3d(std::sin(yaw) * std::cos(pitch),
+                                                 -std::cos(yaw) * std::cos(pitch),
+                                                 -std::sin(pitch));
+}
+
+TEST(Camera, EyeFollowsYawAndPitch) {
+  for (double yaw : {0.0, 45.0, 135.0, -70.0, 300.0}) {
+    for (double pitch : {-30.0, -89.0, 10.0}) {
+      Camera c;
+      c.target = Eigen::Vector3d(0.3, -0.2, 0.5);
+      c.distance = 1.7;
+      c.yaw_deg = yaw;
+      c.pitch_deg = pitch;
+      EXPECT_LT((c.eye() - spherical_eye(c)).norm(), 1e-12) << yaw << " " << pitch;
+    }
+  }
+  // Panda-Gym's default pitch -30 looks down from above
+  EXPECT_GT(Camera().eye().z(), 0.0);
+}
+
+TEST(Camera, ViewPutsTheTargetAheadAndWorldUpUp) {
+  Camera c;
+  c.target = Eigen::Vector3d(-0.6, 0.1, 0.6);
+  c.yaw_deg = 135;
+  const Eigen::Isometry3d X_CW = c.X_CW();
+  const Eigen::Vector3d p_C = X_CW * c.target;
+  EXPECT_NEAR(p_C.x(), 0.0, 1e-12);
+  EXPECT_NEAR(p_C.y(), 0.0, 1e-12);
+  EXPECT_NEAR(p_C.z(), -c.distance, 1e-12);  // OpenGL looks along -z
+  // a point above the target is up in the image
+  EXPECT_GT((X_CW * (c.target + Eigen::Vector3d::UnitZ())).y(), 0.0);
+  EXPECT_NEAR(X_CW.linear().determinant(), 1.0, 1e-12);
+}
+
+TEST(Camera, ProjectionIsGluPerspective) {
+  Camera c;
+  c.fov_y_deg = 90;
+  const Eigen::Matrix4d P = c.projection(200, 100);
+  // a point at depth 1 on the top edge of a 90 degree view lands at y = 1
+  const Eigen::Vector4d top = P * Eigen::Vector4d(0, 1, -1, 1);
+  EXPECT_NEAR(top.y() / top.w(), 1.0, 1e-12);
+  const Eigen::Vector4d right = P * Eigen::Vector4d(2, 0, -1, 1);  // aspect 2
+  EXPECT_NEAR(right.x() / right.w(), 1.0, 1e-12);
+  const Eigen::Vector4d near = P * Eigen::Vector4d(0, 0, -c.near, 1);
+  EXPECT_NEAR(near.z() / near.w(), -1.0, 1e-9);
+}
+
+TEST(Camera, BadFieldsAreNamed) {
+  const auto message = [](Camera c) {
+    try {
+      c.check();
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  Camera c;
+  c.distance = -1;
+  EXPECT_NE(message(c).find("camera 'cam0': distance = -1, expected"), std::string::npos);
+  c = Camera();
+  c.fov_y_deg = 180;
+  EXPECT_NE(message(c).find("fov_y_deg = 180"), std::string::npos);
+  c = Camera();
+  c.far = 0.05;
+  EXPECT_NE(message(c).find("far = 0.05"), std::string::npos);
+  c = Camera();
+  c.pitch_deg = -90;
+  EXPECT_NE(message(c).find("pitch_deg"), std::string::npos);
+  CameraRig rig = CameraRig::two_cameras();
+  rig.cameras[1].name = rig.cameras[0].name;
+  EXPECT_THROW(rig.check(), std::invalid_argument);
+  rig = CameraRig::single_camera();
+  rig.width = 4;
+  EXPECT_THROW(rig.check(), std::invalid_argument);
+}
+
+TEST(Camera, RigsAreThePapersCameraSetups) {
+  const CameraRig one = CameraRig::single_camera(), two = CameraRig::two_cameras();
+  one.check();
+  two.check();
+  ASSERT_EQ(one.cameras.size(), 1u);
+  EXPECT_EQ(one.cameras[0].yaw_deg, 0.0);  // perpendicular to the arm's x-z plane
+  ASSERT_EQ(two.cameras.size(), 2u);
+  EXPECT_EQ(two.cameras[0].yaw_deg, 45.0);
+  EXPECT_EQ(two.cameras[1].yaw_deg, 135.0);
+  for (const CameraRig* rig : {&one, &two}) {
+    EXPECT_EQ(rig->width, 128);
+    for (const Camera& c : rig->cameras) {
+      EXPECT_EQ(c.distance, 1.4);  // Panda-Gym's
+      EXPECT_EQ(c.pitch_deg, -30.0);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace ropes::sim
