@@ -1,0 +1,77 @@
+#pragma once
+/// @file dataset_generator.hpp
+/// generate_dataset: the paper's interventional datasets, rendered. For every anchor a of a
+/// DatasetConfig, InterventionSampler::sample_anchor(seed, a) gives one configuration per
+/// regime (observational, then two interventions per intervened joint); Simbody places the
+/// links; every camera of the rig renders every configuration. Row r of the dataset is
+/// (anchor r / regimes, regime r % regimes), with columns (ropes_nn's dataset container):
+///   images  u8  [n, cameras, height, width]   grey, rows top to bottom
+///   angles  f32 [n, joints]                   the distribution's joints, radians
+///   regime  i32 [n]                           index into the manifest's regime_names
+///   anchor  i64 [n]
+/// The manifest's metadata records the format, the full config (rig written out), the
+/// distribution as read, the URDF's file name and SHA-256, the seed, the counts and the
+/// camera, joint and regime names.
+///
+/// A dataset is a pure function of (config, seed): each anchor draws from its own Philox
+/// stream and each image depends only on its configuration and camera, so any thread count
+/// and any sharding give the same bytes. Shards are written whole (temporary name and
+/// rename) and committed by their marker, so a run killed at any point and run again
+/// redoes only the shards without a marker: nothing is lost or duplicated.
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "ropes_sim/dataset_config.hpp"
+
+namespace ropes::sim {
+
+/// The dataset directory's layout, on top of the container's (manifest.json, shards/):
+/// DIR/generation.json holds the metadata from the first run, so that a rerun can tell
+/// its own unfinished dataset from a different one.
+inline constexpr const char* kGenerationFile = "generation.json";
+inline constexpr int kSimDatasetVersion = 1;
+
+struct GenerateOptions {
+  std::filesystem::path out;
+  std::uint64_t seed = 0;
+  int threads = 1;
+  /// Which shards this run writes: those with index % shard_count == shard_index.
+  int shard_index = 0, shard_count = 1;
+  /// Called after each shard is written: (shards done in this run, shards this run has,
+  /// message). May be empty.
+  std::function<void(int, int, const std::string&)> progress;
+};
+
+struct GenerateResult {
+  int shards_written = 0;             // by this run
+  int shards_skipped = 0;             // complete before this run
+  bool complete = false;              // manifest.json written (now or before)
+  std::int64_t images = 0;            // rendered by this run
+  std::vector<std::string> warnings;  // the scene's (missing materials, ...)
+};
+
+/// The dataset's metadata (manifest "metadata") as JSON text. Throws ConfigError naming the
+/// distribution file and the joint when one of its joints is not a movable joint of the
+/// robot, ModelError for a robot that cannot be loaded.
+std::string dataset_metadata(const DatasetConfig& config, std::uint64_t seed);
+
+/// Generates (or resumes) the dataset in options.out. Throws std::invalid_argument for bad
+/// options (threads < 1, shard index outside [0, count)); std::runtime_error naming the
+/// directory and what differs when it holds a different dataset (another config or seed),
+/// or is not empty and holds no dataset (nothing is written then); ConfigError for a camera
+/// that sees (almost) none of the robot in anchor 0's observational configuration, naming
+/// the camera and its parameters; ModelError/MeshError/RenderError from loading and
+/// rendering. Cost: about a millisecond per 128x128 image of the primitive Panda per thread.
+GenerateResult generate_dataset(const DatasetConfig& config, const GenerateOptions& options);
+
+/// Renders anchor `anchor` under `seed` in every regime and camera and writes a PNG contact
+/// sheet to `png`: one row per camera, one column per regime, each tile labelled, scaled by
+/// `scale` (nearest neighbour). Written through a temporary file and a rename.
+void write_preview(const DatasetConfig& config, std::uint64_t seed, std::uint64_t anchor,
+                   const std::filesystem::path& png, int scale = 2);
+
+}  // namespace ropes::sim

@@ -1,0 +1,189 @@
+#include "ropes_sim/dataset_config.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <fstream>
+#include <set>
+
+#include "ropes_sim/intervention_sampler.hpp"
+
+namespace ropes::sim {
+
+namespace {
+
+using Json = nlohmann::json;
+
+[[noreturn]] void fail(const std::string& file, const std::string& what) {
+  throw ConfigError(file + ": " + what);
+}
+
+void only_fields(const Json& object, const std::set<std::string>& allowed, const std::string& file,
+                 const std::string& where) {
+  for (const auto& [key, value] : object.items()) {
+    if (!allowed.count(key)) {
+      std::string list;
+      for (const auto& a : allowed)
+        list += (list.empty() ? "" : ", ") + a;
+      fail(file, where + "has an unknown field '" + key + "' (expected one of: " + list + ")");
+    }
+  }
+}
+
+const Json& required(const Json& object, const char* key, const std::string& file,
+                     const std::string& where) {
+  if (!object.contains(key))
+    fail(file, where + "lacks the field '" + key + "'");
+  return object[key];
+}
+
+double number(const Json& v, const std::string& file, const std::string& field) {
+  if (!v.is_number())
+    fail(file, field + " is " + v.dump() + "; expected a number");
+  return v.get<double>();
+}
+
+std::int64_t integer(const Json& v, const std::string& file, const std::string& field,
+                     std::int64_t lo, std::int64_t hi) {
+  if (!v.is_number_integer() || v.get<std::int64_t>() < lo || v.get<std::int64_t>() > hi)
+    fail(file, field + " is " + v.dump() + "; expected an integer in [" + std::to_string(lo) +
+                   ", " + std::to_string(hi) + "]");
+  return v.get<std::int64_t>();
+}
+
+std::string text(const Json& v, const std::string& file, const std::string& field) {
+  if (!v.is_string() || v.get<std::string>().empty())
+    fail(file, field + " is " + v.dump() + "; expected a non-empty string");
+  return v.get<std::string>();
+}
+
+Camera camera(const Json& v, const std::string& file, const std::string& field) {
+  if (!v.is_object())
+    fail(file, field + " is not an object");
+  only_fields(v, {"name", "target", "distance", "yaw_deg", "pitch_deg", "fov_y_deg", "near", "far"},
+              file, field + " ");
+  Camera c;
+  c.name = text(required(v, "name", file, field + " "), file, field + ".name");
+  if (v.contains("target")) {
+    const Json& t = v["target"];
+    if (!t.is_array() || t.size() != 3)
+      fail(file, field + ".target is " + t.dump() + "; expected [x, y, z]");
+    for (int i = 0; i < 3; ++i)
+      c.target[i] = number(t[static_cast<std::size_t>(i)], file, field + ".target");
+  }
+  const auto opt = [&](const char* key, double* out) {
+    if (v.contains(key))
+      *out = number(v[key], file, field + "." + key);
+  };
+  opt("distance", &c.distance);
+  opt("yaw_deg", &c.yaw_deg);
+  opt("pitch_deg", &c.pitch_deg);
+  opt("fov_y_deg", &c.fov_y_deg);
+  opt("near", &c.near);
+  opt("far", &c.far);
+  try {
+    c.check();
+  } catch (const std::invalid_argument& e) {
+    fail(file, field + ": " + e.what());
+  }
+  return c;
+}
+
+std::filesystem::path relative_to(const std::filesystem::path& file, const std::string& value) {
+  const std::filesystem::path p(value);
+  return p.is_absolute() ? p : file.parent_path() / p;
+}
+
+Json camera_json(const Camera& c) {
+  return Json{{"name", c.name},           {"target", {c.target.x(), c.target.y(), c.target.z()}},
+              {"distance", c.distance},   {"yaw_deg", c.yaw_deg},
+              {"pitch_deg", c.pitch_deg}, {"fov_y_deg", c.fov_y_deg},
+              {"near", c.near},           {"far", c.far}};
+}
+
+}  // namespace
+
+DatasetConfig DatasetConfig::load(const std::filesystem::path& path) {
+  const std::string file = path.string();
+  std::ifstream in(path);
+  if (!in)
+    fail(file, "cannot open the dataset config");
+  Json config;
+  try {
+    config = Json::parse(in);
+  } catch (const Json::exception& e) {
+    fail(file, std::string("not JSON: ") + e.what());
+  }
+  if (!config.is_object())
+    fail(file, "the config is not a JSON object");
+  only_fields(config,
+              {"name", "source", "notes", "distribution", "robot", "rig", "image", "anchors",
+               "anchors_per_shard"},
+              file, "");
+
+  DatasetConfig c;
+  c.file = path;
+  c.name = text(required(config, "name", file, ""), file, "name");
+  c.distribution =
+      relative_to(path, text(required(config, "distribution", file, ""), file, "distribution"));
+  if (!std::filesystem::is_regular_file(c.distribution))
+    fail(file, "distribution is '" + config["distribution"].get<std::string>() +
+                   "': " + c.distribution.string() + " does not exist");
+  c.robot = relative_to(path, text(required(config, "robot", file, ""), file, "robot"));
+  if (!std::filesystem::is_regular_file(c.robot))
+    fail(file, "robot is '" + config["robot"].get<std::string>() + "': " + c.robot.string() +
+                   " does not exist");
+
+  const Json& rig = required(config, "rig", file, "");
+  if (rig.is_string()) {
+    const std::string name = rig.get<std::string>();
+    if (name == "single_camera") {
+      c.rig = CameraRig::single_camera();
+    } else if (name == "two_cameras") {
+      c.rig = CameraRig::two_cameras();
+    } else {
+      fail(file,
+           "rig is \"" + name + "\"; expected \"single_camera\", \"two_cameras\" or a rig object");
+    }
+  } else if (rig.is_object()) {
+    only_fields(rig, {"name", "cameras"}, file, "rig ");
+    c.rig.name = text(required(rig, "name", file, "rig "), file, "rig.name");
+    const Json& cameras = required(rig, "cameras", file, "rig ");
+    if (!cameras.is_array() || cameras.empty())
+      fail(file, "rig.cameras is " + cameras.dump() + "; expected a non-empty array");
+    for (std::size_t i = 0; i < cameras.size(); ++i)
+      c.rig.cameras.push_back(camera(cameras[i], file, "rig.cameras[" + std::to_string(i) + "]"));
+  } else {
+    fail(file, "rig is " + rig.dump() + "; expected a rig name or object");
+  }
+  const Json& image = required(config, "image", file, "");
+  if (!image.is_object())
+    fail(file, "image is " + image.dump() + "; expected {width, height}");
+  only_fields(image, {"width", "height"}, file, "image ");
+  c.rig.width = static_cast<int>(
+      integer(required(image, "width", file, "image "), file, "image.width", 8, 4096));
+  c.rig.height = static_cast<int>(
+      integer(required(image, "height", file, "image "), file, "image.height", 8, 4096));
+  try {
+    c.rig.check();
+  } catch (const std::invalid_argument& e) {
+    fail(file, std::string("rig: ") + e.what());
+  }
+  c.anchors = integer(required(config, "anchors", file, ""), file, "anchors", 1, 1LL << 40);
+  c.anchors_per_shard = integer(required(config, "anchors_per_shard", file, ""), file,
+                                "anchors_per_shard", 1, 1LL << 20);
+  return c;
+}
+
+std::string DatasetConfig::to_json() const {
+  Json cameras = Json::array();
+  for (const Camera& cam : rig.cameras)
+    cameras.push_back(camera_json(cam));
+  const Json j{{"name", name},
+               {"rig", {{"name", rig.name}, {"cameras", cameras}}},
+               {"image", {{"width", rig.width}, {"height", rig.height}}},
+               {"anchors", anchors},
+               {"anchors_per_shard", anchors_per_shard}};
+  return j.dump();
+}
+
+}  // namespace ropes::sim

@@ -1,0 +1,460 @@
+#include "ropes_sim/dataset_generator.hpp"
+
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <signal.h>
+
+#include <cerrno>
+#include <chrono>
+#include <condition_variable>
+#include <cstring>
+#include <exception>
+#include <fstream>
+#include <mutex>
+#include <thread>
+
+#include "ropes_nn/dataset.hpp"
+#include "ropes_nn/sha256.hpp"
+#include "ropes_sim/intervention_sampler.hpp"
+#include "ropes_sim/kinematics.hpp"
+#include "ropes_sim/renderer.hpp"
+
+#ifndef ROPES_SIM_VERSION
+#define ROPES_SIM_VERSION "unknown"
+#endif
+
+namespace ropes::sim {
+
+namespace {
+
+using Json = nlohmann::json;
+namespace fs = std::filesystem;
+
+// what every run needs, loaded once
+struct Setup {
+  RobotModel model;
+  InterventionSampler sampler;
+  std::vector<int> coordinate_of_joint;  // sampler joint -> model coordinate
+  int regimes = 0, cameras = 0, width = 0, height = 0, joints = 0;
+
+  Setup(const DatasetConfig& config)
+      : model(RobotModel::load(config.robot)),
+        sampler(InterventionSampler::load(config.distribution)) {
+    const auto& movable = model.movable_joints();
+    for (const std::string& name : sampler.joint_names()) {
+      int found = -1;
+      for (std::size_t c = 0; c < movable.size(); ++c)
+        if (model.joints()[static_cast<std::size_t>(movable[c])].name == name)
+          found = static_cast<int>(c);
+      if (found < 0)
+        throw ConfigError(config.distribution.string() + ": joint '" + name +
+                          "' is not a movable joint of robot '" + model.name() + "' (" +
+                          config.robot.string() + ")");
+      coordinate_of_joint.push_back(found);
+    }
+    regimes = static_cast<int>(sampler.regime_names().size());
+    cameras = static_cast<int>(config.rig.cameras.size());
+    width = config.rig.width;
+    height = config.rig.height;
+    joints = static_cast<int>(sampler.joint_names().size());
+  }
+
+  // the model's coordinates for one sampled configuration (other joints at 0)
+  std::vector<double> coordinates(const std::vector<double>& q) const {
+    std::vector<double> out(model.movable_joints().size(), 0.0);
+    for (std::size_t j = 0; j < q.size(); ++j)
+      out[static_cast<std::size_t>(coordinate_of_joint[j])] = q[j];
+    return out;
+  }
+
+  std::vector<nn::ColumnSpec> columns() const {
+    return {{"images", nn::DType::kU8, {cameras, height, width}},
+            {"angles", nn::DType::kF32, {joints}},
+            {"regime", nn::DType::kI32, {}},
+            {"anchor", nn::DType::kI64, {}}};
+  }
+};
+
+// a thread with its own Kinematics and Renderer (an OSMesa context stays on its thread)
+struct Worker {
+  Kinematics kinematics;
+  Renderer renderer;
+  Worker(const RobotModel& model, std::shared_ptr<const Scene> scene, int width, int height)
+      : kinematics(model), renderer(std::move(scene), width, height) {}
+};
+
+// runs a job on every worker at once and waits for all of them
+class WorkerPool {
+ public:
+  WorkerPool(int threads, const RobotModel& model, const std::shared_ptr<const Scene>& scene,
+             int width, int height) {
+    std::vector<std::exception_ptr> setup_errors(static_cast<std::size_t>(threads));
+    for (int t = 0; t < threads; ++t) {
+      threads_.emplace_back([this, t, &model, scene, width, height, &setup_errors] {
+        std::unique_ptr<Worker> worker;
+        try {
+          worker = std::make_unique<Worker>(model, scene, width, height);
+        } catch (...) {
+          setup_errors[static_cast<std::size_t>(t)] = std::current_exception();
+        }
+        loop(t, worker.get());
+      });
+    }
+    run([](int, Worker*) {});  // waits until every worker is set up
+    for (auto& e : setup_errors)
+      if (e) {
+        shutdown();
+        std::rethrow_exception(e);
+      }
+  }
+  ~WorkerPool() { shutdown(); }
+  int size() const { return static_cast<int>(threads_.size()); }
+
+  // job(t, worker) on every thread t; rethrows the first exception
+  void run(const std::function<void(int, Worker*)>& job) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    job_ = &job;
+    error_ = nullptr;
+    running_ = size();
+    ++generation_;
+    wake_.notify_all();
+    done_.wait(lock, [this] { return running_ == 0; });
+    job_ = nullptr;
+    if (error_)
+      std::rethrow_exception(error_);
+  }
+
+ private:
+  void loop(int t, Worker* worker) {
+    std::uint64_t seen = 0;
+    for (;;) {
+      const std::function<void(int, Worker*)>* job = nullptr;
+      {
+        std::unique_lock<std::mutex> lock(mutex_);
+        wake_.wait(lock, [&] { return stop_ || generation_ != seen; });
+        if (stop_)
+          return;
+        seen = generation_;
+        job = job_;
+      }
+      std::exception_ptr error;
+      try {
+        if (worker)
+          (*job)(t, worker);
+      } catch (...) {
+        error = std::current_exception();
+      }
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (error && !error_)
+        error_ = error;
+      if (--running_ == 0)
+        done_.notify_all();
+    }
+  }
+  void shutdown() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stop_ = true;
+      wake_.notify_all();
+    }
+    for (auto& th : threads_)
+      if (th.joinable())
+        th.join();
+  }
+
+  std::vector<std::thread> threads_;
+  std::mutex mutex_;
+  std::condition_variable wake_, done_;
+  const std::function<void(int, Worker*)>* job_ = nullptr;
+  std::exception_ptr error_;
+  int running_ = 0;
+  std::uint64_t generation_ = 0;
+  bool stop_ = false;
+};
+
+Json read_json(const fs::path& path) {
+  std::ifstream in(path);
+  if (!in)
+    throw std::runtime_error(path.string() + ": cannot be read");
+  try {
+    return Json::parse(in);
+  } catch (const Json::exception& e) {
+    throw std::runtime_error(path.string() + ": not JSON (" + e.what() + ")");
+  }
+}
+
+// the first top-level field in which two metadata objects differ, for the message
+std::string first_difference(const Json& ours, const Json& theirs) {
+  for (const auto& [key, value] : ours.items()) {
+    if (!theirs.contains(key))
+      return key + " (missing there)";
+    if (theirs[key] != value) {
+      std::string a = value.dump(), b = theirs[key].dump();
+      if (a.size() > 60)
+        a = a.substr(0, 57) + "...";
+      if (b.size() > 60)
+        b = b.substr(0, 57) + "...";
+      return key + ": " + a + " now, " + b + " there";
+    }
+  }
+  for (const auto& [key, value] : theirs.items())
+    if (!ours.contains(key))
+      return key + " (only there)";
+  return "nothing";
+}
+
+// checks that `dir` is empty, new, or holds this dataset; returns true when it is complete
+bool prepare_directory(const fs::path& dir, const std::string& metadata) {
+  const Json ours = Json::parse(metadata);
+  const fs::path manifest = dir / "manifest.json", generation = dir / kGenerationFile;
+  if (fs::exists(manifest)) {
+    const Json theirs = read_json(manifest);
+    const Json& meta = theirs.contains("metadata") ? theirs["metadata"] : Json();
+    if (meta != ours)
+      throw std::runtime_error(dir.string() + " holds a different dataset (manifest.json: " +
+                               first_difference(ours, meta) +
+                               "); choose another --out or remove it");
+    return true;
+  }
+  if (fs::exists(generation)) {
+    const Json theirs = read_json(generation);
+    if (theirs != ours)
+      throw std::runtime_error(
+          dir.string() + " holds an unfinished different dataset (" + std::string(kGenerationFile) +
+          ": " + first_difference(ours, theirs) + "); choose another --out or remove it");
+    return false;
+  }
+  if (fs::exists(dir)) {
+    if (!fs::is_directory(dir))
+      throw std::runtime_error(dir.string() + " exists and is not a directory");
+    if (!fs::is_empty(dir))
+      throw std::runtime_error(dir.string() +
+                               " is not empty and holds no ropes dataset (no manifest.json or " +
+                               kGenerationFile + "); choose an empty or new directory");
+  }
+  fs::create_directories(dir);
+  const std::string text = ours.dump(2) + "\n";
+  nn::write_file_atomically(generation, reinterpret_cast<const std::uint8_t*>(text.data()),
+                            text.size());
+  return false;
+}
+
+// removes temporary files ("<name>.tmp.<pid>", see nn::write_file_atomically) that a killed
+// run left behind; those of a process still running (another --shard run) stay
+void remove_stale_temporaries(const fs::path& dir) {
+  for (const fs::path& d : {dir, dir / "shards"}) {
+    if (!fs::is_directory(d))
+      continue;
+    for (const auto& entry : fs::directory_iterator(d)) {
+      const std::string name = entry.path().filename().string();
+      const auto at = name.rfind(".tmp.");
+      if (at == std::string::npos)
+        continue;
+      const std::string pid = name.substr(at + 5);
+      if (pid.empty() || pid.find_first_not_of("0123456789") != std::string::npos)
+        continue;
+      if (::kill(static_cast<pid_t>(std::stol(pid)), 0) == -1 && errno == ESRCH)
+        fs::remove(entry.path());
+    }
+  }
+}
+
+// renders the rows of anchors [first, last) into the shard's columns
+void render_anchors(const Setup& s, const DatasetConfig& config, std::uint64_t seed,
+                    std::int64_t first, std::int64_t last, int thread, int threads, Worker* w,
+                    std::vector<nn::NpyArray>* data) {
+  const std::size_t image_bytes = static_cast<std::size_t>(s.width) * s.height;
+  for (std::int64_t a = first + thread; a < last; a += threads) {
+    const auto samples = s.sampler.sample_anchor(seed, static_cast<std::uint64_t>(a));
+    for (int r = 0; r < s.regimes; ++r) {
+      const std::size_t row = static_cast<std::size_t>((a - first) * s.regimes + r);
+      const std::vector<double>& q = samples[static_cast<std::size_t>(r)];
+      w->kinematics.set_positions(s.coordinates(q));
+      const auto X_BL = w->kinematics.link_poses();
+      for (int c = 0; c < s.cameras; ++c)
+        w->renderer.render(X_BL, config.rig.cameras[static_cast<std::size_t>(c)],
+                           (*data)[0].data.data() + (row * s.cameras + c) * image_bytes);
+      auto* angles = reinterpret_cast<float*>((*data)[1].data.data()) + row * s.joints;
+      for (int j = 0; j < s.joints; ++j)
+        angles[j] = static_cast<float>(q[static_cast<std::size_t>(j)]);
+      const std::int32_t regime = r;
+      const std::int64_t anchor = a;
+      std::memcpy((*data)[2].data.data() + row * 4, &regime, 4);
+      std::memcpy((*data)[3].data.data() + row * 8, &anchor, 8);
+    }
+  }
+}
+
+void check_cameras_see_robot(const Setup& s, const DatasetConfig& config, std::uint64_t seed,
+                             Worker* w) {
+  w->kinematics.set_positions(s.coordinates(s.sampler.sample_anchor(seed, 0)[0]));
+  const auto X_BL = w->kinematics.link_poses();
+  const int minimum = std::max(4, s.width * s.height / 1000);
+  for (std::size_t c = 0; c < config.rig.cameras.size(); ++c) {
+    const Camera& cam = config.rig.cameras[c];
+    const int seen = w->renderer.robot_pixels(X_BL, cam);
+    if (seen < minimum) {
+      const Eigen::Vector3d t = cam.target;
+      throw ConfigError(config.file.string() + ": rig camera '" + cam.name + "' (target [" +
+                        std::to_string(t.x()) + ", " + std::to_string(t.y()) + ", " +
+                        std::to_string(t.z()) + "], distance " + std::to_string(cam.distance) +
+                        ", yaw " + std::to_string(cam.yaw_deg) + ", pitch " +
+                        std::to_string(cam.pitch_deg) + ", fov " + std::to_string(cam.fov_y_deg) +
+                        ") sees " + std::to_string(seen) +
+                        " pixels of the robot in anchor 0's observational pose; expected at "
+                        "least " +
+                        std::to_string(minimum) + ": the camera looks at nothing");
+    }
+  }
+}
+
+}  // namespace
+
+std::string dataset_metadata(const DatasetConfig& config, std::uint64_t seed) {
+  const Setup s(config);
+  const Json distribution = read_json(config.distribution);
+  Json cameras = Json::array();
+  for (const Camera& c : config.rig.cameras)
+    cameras.push_back(c.name);
+  const Json meta{{"generator", "ropes-generate"},
+                  {"ropes_sim_version", ROPES_SIM_VERSION},
+                  {"sim_dataset_version", kSimDatasetVersion},
+                  {"config", Json::parse(config.to_json())},
+                  {"distribution", distribution},
+                  {"robot",
+                   {{"name", s.model.name()},
+                    {"file", config.robot.filename().string()},
+                    {"sha256", nn::sha256_file(config.robot)}}},
+                  {"seed", seed},
+                  {"anchors", config.anchors},
+                  {"samples_per_anchor", s.regimes},
+                  {"samples", config.anchors * s.regimes},
+                  {"images", config.anchors * s.regimes * s.cameras},
+                  {"image", {{"width", s.width}, {"height", s.height}}},
+                  {"cameras", cameras},
+                  {"joint_names", s.sampler.joint_names()},
+                  {"regime_names", s.sampler.regime_names()},
+                  {"shards", config.shard_count()}};
+  return meta.dump();
+}
+
+GenerateResult generate_dataset(const DatasetConfig& config, const GenerateOptions& options) {
+  if (options.threads < 1 || options.threads > 256)
+    throw std::invalid_argument("generate_dataset: threads is " + std::to_string(options.threads) +
+                                "; expected 1..256");
+  if (options.shard_count < 1 || options.shard_index < 0 ||
+      options.shard_index >= options.shard_count)
+    throw std::invalid_argument("generate_dataset: shard " + std::to_string(options.shard_index) +
+                                "/" + std::to_string(options.shard_count) +
+                                "; expected k/N with 0 <= k < N");
+  const Setup s(config);
+  const std::string metadata = dataset_metadata(config, options.seed);
+  const auto columns = s.columns();
+  const int shards = static_cast<int>(config.shard_count());
+  GenerateResult result;
+  if (prepare_directory(options.out, metadata)) {
+    result.complete = true;
+    result.shards_skipped = shards;
+    return result;
+  }
+
+  remove_stale_temporaries(options.out);
+  // the shards this run owns that are not done yet
+  std::vector<int> todo;
+  for (int shard = options.shard_index; shard < shards; shard += options.shard_count) {
+    if (nn::dataset_shard_complete(options.out, shard, columns))
+      ++result.shards_skipped;
+    else
+      todo.push_back(shard);
+  }
+
+  if (!todo.empty()) {
+    const auto scene = Scene::build(s.model);
+    result.warnings = scene->warnings();
+    WorkerPool pool(options.threads, s.model, scene, s.width, s.height);
+    pool.run([&](int t, Worker* w) {
+      if (t == 0)
+        check_cameras_see_robot(s, config, options.seed, w);
+    });
+    int done = 0;
+    for (const int shard : todo) {
+      const auto start = std::chrono::steady_clock::now();
+      const std::int64_t first = shard * config.anchors_per_shard;
+      const std::int64_t last = std::min(config.anchors, first + config.anchors_per_shard);
+      const std::int64_t rows = (last - first) * s.regimes;
+      std::vector<nn::NpyArray> data(columns.size());
+      for (std::size_t c = 0; c < columns.size(); ++c) {
+        data[c].dtype = columns[c].dtype;
+        data[c].shape = {rows};
+        data[c].shape.insert(data[c].shape.end(), columns[c].row_shape.begin(),
+                             columns[c].row_shape.end());
+        data[c].data.resize(static_cast<std::size_t>(data[c].element_count()) *
+                            nn::dtype_size(columns[c].dtype));
+      }
+      pool.run([&](int t, Worker* w) {
+        render_anchors(s, config, options.seed, first, last, t, pool.size(), w, &data);
+      });
+      nn::write_dataset_shard(options.out, shard, columns, data);
+      ++done;
+      const std::int64_t images = rows * s.cameras;
+      result.images += images;
+      ++result.shards_written;
+      const double seconds =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      if (options.progress) {
+        options.progress(done, static_cast<int>(todo.size()),
+                         "shard " + std::to_string(shard) + " (anchors " + std::to_string(first) +
+                             ".." + std::to_string(last - 1) + "): " + std::to_string(images) +
+                             " images, " + std::to_string(static_cast<int>(images / seconds)) +
+                             " images/s");
+      }
+    }
+  }
+
+  // the manifest, once every shard (from any run) is there
+  for (int shard = 0; shard < shards; ++shard)
+    if (!nn::dataset_shard_complete(options.out, shard, columns))
+      return result;
+  nn::write_dataset_manifest(options.out, columns, shards, metadata);
+  result.complete = true;
+  return result;
+}
+
+void write_preview(const DatasetConfig& config, std::uint64_t seed, std::uint64_t anchor,
+                   const std::filesystem::path& png, int scale) {
+  if (scale < 1 || scale > 16)
+    throw std::invalid_argument("write_preview: scale is " + std::to_string(scale) +
+                                "; expected 1..16");
+  const Setup s(config);
+  const auto scene = Scene::build(s.model);
+  Worker w(s.model, scene, s.width, s.height);
+  check_cameras_see_robot(s, config, seed, &w);
+  const auto samples = s.sampler.sample_anchor(seed, anchor);
+  const int tile_w = s.width * scale, tile_h = s.height * scale, label = 22, gap = 4;
+  cv::Mat sheet(s.cameras * (tile_h + label) + (s.cameras + 1) * gap,
+                s.regimes * tile_w + (s.regimes + 1) * gap, CV_8UC1, cv::Scalar(255));
+  for (int r = 0; r < s.regimes; ++r) {
+    w.kinematics.set_positions(s.coordinates(samples[static_cast<std::size_t>(r)]));
+    const auto X_BL = w.kinematics.link_poses();
+    for (int c = 0; c < s.cameras; ++c) {
+      const Camera& cam = config.rig.cameras[static_cast<std::size_t>(c)];
+      std::vector<std::uint8_t> image = w.renderer.render(X_BL, cam);
+      const cv::Mat tile(s.height, s.width, CV_8UC1, image.data());
+      const int x = gap + r * (tile_w + gap), y = gap + c * (tile_h + label + gap);
+      cv::resize(tile, sheet(cv::Rect(x, y + label, tile_w, tile_h)), cv::Size(tile_w, tile_h), 0,
+                 0, cv::INTER_NEAREST);
+      const std::string text = (s.cameras > 1 ? cam.name + " " : "") +
+                               s.sampler.regime_names()[static_cast<std::size_t>(r)];
+      cv::putText(sheet, text, cv::Point(x + 2, y + label - 6), cv::FONT_HERSHEY_SIMPLEX, 0.4,
+                  cv::Scalar(0), 1, cv::LINE_AA);
+    }
+  }
+  std::vector<std::uint8_t> bytes;
+  if (!cv::imencode(".png", sheet, bytes))
+    throw std::runtime_error(png.string() + ": OpenCV could not encode the PNG");
+  nn::write_file_atomically(png, bytes.data(), bytes.size());
+}
+
+}  // namespace ropes::sim
