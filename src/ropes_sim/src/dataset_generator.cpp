@@ -445,8 +445,12 @@ void write_preview(const DatasetConfig& config, std::uint64_t seed, std::uint64_
       const int x = gap + r * (tile_w + gap), y = gap + c * (tile_h + label + gap);
       cv::resize(tile, sheet(cv::Rect(x, y + label, tile_w, tile_h)), cv::Size(tile_w, tile_h), 0,
                  0, cv::INTER_NEAREST);
-      const std::string text = (s.cameras > 1 ? cam.name + " " : "") +
-                               s.sampler.regime_names()[static_cast<std::size_t>(r)];
+      // short labels: "yaw45: observational", "do(joint2)=1"
+      std::string text = s.sampler.regime_names()[static_cast<std::size_t>(r)];
+      for (std::size_t at; (at = text.find("panda_joint")) != std::string::npos;)
+        text.replace(at, 11, "joint");
+      if (r == 0 && s.cameras > 1)
+        text = cam.name + ": " + text;
       cv::putText(sheet, text, cv::Point(x + 2, y + label - 6), cv::FONT_HERSHEY_SIMPLEX, 0.4,
                   cv::Scalar(0), 1, cv::LINE_AA);
     }

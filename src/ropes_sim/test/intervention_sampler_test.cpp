@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <vector>
 
 namespace ropes::sim {
 namespace {
@@ -44,6 +45,53 @@ TEST(InterventionSamplerGolden, ConfigsCarryThePapersNumbers) {
   EXPECT_EQ(causal.sem_weight(joint(causal, 3), joint(causal, 2)), 0.88);
   EXPECT_EQ(causal.sem_weight(joint(causal, 6), joint(causal, 3)), 0.37);
   EXPECT_FALSE(causal.observational(joint(causal, 3)).has_value());  // not a root
+}
+
+// The first two samples (observational, first intervention) of anchor 0 under seed 0, per
+// config: a regression pin produced by the code (the sampling itself is checked against
+// closed-form moments and numeric integration in truncated_normal_test.cpp). Independent
+// checks here: held joints equal the config, the intervention changes only its joint (and,
+// in the SEM, joint 6 = its parents' weighted sum + the anchor's noise, recomputed here).
+// Regenerate by printing sample_anchor(0, 0)[0..1] with %.17g.
+TEST(InterventionSamplerGolden, FirstSamplesOfEachConfigForSeedZero) {
+  struct Case {
+    const char* name;
+    std::vector<std::vector<double>> first;
+  };
+  const Case cases[] = {
+      {"1c_independent",
+       {{0, -0.22102799491644551, 0, 0.5365714433627139, 0, 2.8354960536329941, 0.79},
+        {0, -0.46689250736474458, 0, 0.5365714433627139, 0, 2.8354960536329941, 0.79}}},
+      {"2c_independent",
+       {{1.0985124158159418, 0.25202249401103466, 0.76539831983367768, 0.20277039318088136,
+         -0.82538460351720055, 1.0696831176045045, 0.79},
+        {2.3122365165133223, 0.25202249401103466, 0.76539831983367768, 0.20277039318088136,
+         -0.82538460351720055, 1.0696831176045045, 0.79}}},
+      {"2c_ood",
+       {{1.0985124158159418, 0.25202249401103466, 0.76539831983367768, 0.97170360656730559,
+         -0.82538460351720055, 0.20670317556502599, 0.79},
+        {2.3122365165133223, 0.25202249401103466, 0.76539831983367768, 0.97170360656730559,
+         -0.82538460351720055, 0.20670317556502599, 0.79}}},
+      {"2c_causal",
+       {{1.5048098116382893, 0.42283823629718625, 0.37453551303550997, 0.33661643442148209,
+         0.18237127520703331, 0.84237578474158847, 0.79},
+        {2.6097076262176797, 0.42283823629718625, 0.37453551303550997, 0.33661643442148209,
+         0.18237127520703331, 1.1075512602406421, 0.79}}},
+  };
+  for (const Case& c : cases) {
+    const auto s = InterventionSampler::load(kDir / (std::string(c.name) + ".json"));
+    const auto got = s.sample_anchor(0, 0);
+    for (std::size_t r = 0; r < 2; ++r)
+      for (std::size_t j = 0; j < 7; ++j)
+        EXPECT_EQ(got[r][j], c.first[r][j]) << c.name << " regime " << r << " joint " << j + 1;
+  }
+  // the SEM witness: do(joint1) moves joint 6 by w(6 <- 1) times the change of joint 1
+  const auto sem = InterventionSampler::load(kDir / "2c_causal.json");
+  const double w61 = sem.sem_weight(joint(sem, 6), joint(sem, 1));
+  if (w61 != 0.0) {
+    const Case& c = cases[3];
+    EXPECT_NEAR(c.first[1][5] - c.first[0][5], w61 * (c.first[1][0] - c.first[0][0]), 1e-12);
+  }
 }
 
 TEST(InterventionSampler, IndependentInterventionsChangeOneJointAndHoldTheRest) {
