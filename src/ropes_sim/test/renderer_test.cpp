@@ -213,6 +213,23 @@ TEST(RendererGolden, PinnedImagesOfBothRigs) {
   }
 }
 
+TEST(Scene, AMeshThatDoesNotExistNamesTheUrdfTheLinkAndThePath) {
+  const std::string urdf = R"(<robot name="r"><link name="base"><visual><geometry>
+      <mesh filename="package://nowhere/meshes/x.obj"/></geometry></visual></link></robot>)";
+  const RobotModel model =
+      RobotModel::parse(urdf, "/tmp/r.urdf", fs::temp_directory_path() / "ropes_no_such_dir");
+  try {
+    Scene::build(model);
+    FAIL() << "a missing mesh was accepted";
+  } catch (const ModelError& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find("/tmp/r.urdf: link 'base': mesh 'package://nowhere/meshes/x.obj' does not "
+                     "exist (looked for "),
+              std::string::npos)
+        << m;
+  }
+}
+
 TEST(Renderer, PandaGymMeshAssetRendersWhereThePrimitivePandaDoes) {
   if (!fs::exists(kPandaGym))
     GTEST_SKIP() << kPandaGym << " is not there";
