@@ -119,6 +119,7 @@ double dh_chain(const std::vector<double>& q) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  ropes::sim::tune_malloc_for_rendering();  // as ropes-generate does
   const bool quick = argc > 1 && std::string(argv[1]) == "--quick";
   const fs::path ours = fs::path(ROPES_SIM_URDF_DIR) / "panda.urdf";
   const fs::path gym = fs::path(ROPES_SHARED_ASSETS) / "franka_panda" / "panda.urdf";

@@ -5,6 +5,7 @@
 #include <GL/osmesa.h>
 // osmesa.h brings in GL/gl.h
 #include <GL/glext.h>
+#include <malloc.h>
 
 namespace ropes::sim {
 
@@ -348,6 +349,11 @@ std::string Renderer::gl_description() const {
   const auto* renderer = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
   const auto* version = reinterpret_cast<const char*>(glGetString(GL_VERSION));
   return std::string(renderer ? renderer : "?") + " | " + (version ? version : "?");
+}
+
+void tune_malloc_for_rendering() {
+  mallopt(M_MMAP_THRESHOLD, 256 << 20);
+  mallopt(M_TRIM_THRESHOLD, 1 << 30);
 }
 
 }  // namespace ropes::sim

@@ -6,8 +6,10 @@
 #include <filesystem>
 #include <iostream>
 #include <string>
+#include <vector>
 
 #include "ropes_sim/dataset_generator.hpp"
+#include "ropes_sim/renderer.hpp"
 
 namespace {
 
@@ -49,14 +51,16 @@ T parse_number(const std::string& flag, const std::string& text, T lo, T hi) {
 fs::path find_config(const std::string& value) {
   if (fs::is_regular_file(value))
     return value;
+  // next to the executable (an install tree moved elsewhere), then where it was installed
   std::error_code ec;
   const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-  if (!ec) {
-    const fs::path installed =
-        exe.parent_path().parent_path() / "share" / "ropes_sim" / "datasets" / (value + ".json");
-    if (fs::is_regular_file(installed))
-      return installed;
-  }
+  std::vector<fs::path> places;
+  if (!ec)
+    places.push_back(exe.parent_path().parent_path() / "share" / "ropes_sim" / "datasets");
+  places.push_back(fs::path(ROPES_SIM_INSTALL_DATASETS_DIR));
+  for (const fs::path& dir : places)
+    if (fs::is_regular_file(dir / (value + ".json")))
+      return dir / (value + ".json");
   throw UsageError("--config '" + value +
                    "' is neither a file nor an installed config name (1c, 2c, 2c_causal, ...)");
 }
@@ -151,6 +155,7 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  ropes::sim::tune_malloc_for_rendering();
   try {
     return run(argc, argv);
   } catch (const UsageError& e) {
