@@ -335,6 +335,7 @@ struct FileRecord {
 
 struct ShardRecord {
   std::int64_t rows = 0;
+  std::string dataset;            // the writer's dataset id; empty when none was given
   std::vector<FileRecord> files;  // in column order
 };
 
@@ -345,7 +346,10 @@ Json shard_json(const ShardRecord& record, const std::vector<ColumnSpec>& column
     const FileRecord& f = record.files[i];
     files[columns[i].name] = {{"path", f.path}, {"bytes", f.bytes}, {"sha256", f.sha256}};
   }
-  return {{"rows", record.rows}, {"files", files}};
+  Json out = {{"rows", record.rows}, {"files", files}};
+  if (!record.dataset.empty())
+    out["dataset"] = record.dataset;
+  return out;
 }
 
 // a recorded file path, which must be the canonical one (never "../" or an absolute path)
@@ -364,6 +368,12 @@ ShardRecord parse_shard(const Json& v, const std::vector<ColumnSpec>& columns, i
     fail(name, where + " is " + describe(v) + "; expected an object with rows and files");
   ShardRecord record;
   record.rows = count_value(member(v, "rows", name, where), name, where + ".rows");
+  if (v.contains("dataset")) {
+    const Json& id = v["dataset"];
+    if (!id.is_string() || id.get_ref<const std::string&>().empty())
+      fail(name, where + ".dataset is " + describe(id) + "; expected a non-empty string");
+    record.dataset = id.get<std::string>();
+  }
   if (record.rows == 0)
     fail(name, where + ".rows is 0; expected at least 1");
   const Json& files = member(v, "files", name, where);
@@ -391,7 +401,8 @@ ShardRecord parse_shard(const Json& v, const std::vector<ColumnSpec>& columns, i
 
 // shard `shard`'s marker, checked against its files; FileFormatError when it is not complete
 ShardRecord read_complete_shard(const fs::path& dir, int shard,
-                                const std::vector<ColumnSpec>& columns) {
+                                const std::vector<ColumnSpec>& columns,
+                                const std::string& dataset_id) {
   const std::string context = "shard " + std::to_string(shard) + " is not complete: ";
   const fs::path marker = marker_path(dir, shard);
   const std::string name = marker.string();
@@ -400,6 +411,10 @@ ShardRecord read_complete_shard(const fs::path& dir, int shard,
   if (!problem.empty())
     fail(name, context + "the marker " + problem);
   ShardRecord record = parse_shard(json, columns, shard, name, context + "marker");
+  if (record.dataset != dataset_id) {
+    fail(name, context + "the marker's dataset is \"" + record.dataset + "\"; expected \"" +
+                   dataset_id + "\" (a shard of another dataset)");
+  }
   for (std::size_t i = 0; i < columns.size(); ++i) {
     const std::string file = (dir / record.files[i].path).string();
     check_column_file(open_file(file, context), file, columns[i], record.rows,
@@ -433,7 +448,7 @@ std::uint64_t uniform_below(PhiloxStream& rng, std::uint64_t bound) {
 // --- writing ---------------------------------------------------------------------------------
 
 void write_dataset_shard(const fs::path& dir, int shard, const std::vector<ColumnSpec>& columns,
-                         const std::vector<NpyArray>& data) {
+                         const std::vector<NpyArray>& data, const std::string& dataset_id) {
   constexpr const char* kFunction = "write_dataset_shard";
   check_columns(kFunction, columns);
   check_shard_number(kFunction, shard);
@@ -490,6 +505,7 @@ void write_dataset_shard(const fs::path& dir, int shard, const std::vector<Colum
   // the column files, then the marker that records them
   ShardRecord record;
   record.rows = rows;
+  record.dataset = dataset_id;
   for (std::size_t i = 0; i < columns.size(); ++i) {
     const std::vector<std::uint8_t> bytes = serialize_npy(data[i]);
     FileRecord f{column_file(columns[i].name, shard), bytes.size(),
@@ -501,13 +517,13 @@ void write_dataset_shard(const fs::path& dir, int shard, const std::vector<Colum
   write_file_atomically(marker, reinterpret_cast<const std::uint8_t*>(text.data()), text.size());
 }
 
-bool dataset_shard_complete(const fs::path& dir, int shard,
-                            const std::vector<ColumnSpec>& columns) {
+bool dataset_shard_complete(const fs::path& dir, int shard, const std::vector<ColumnSpec>& columns,
+                            const std::string& dataset_id) {
   check_columns("dataset_shard_complete", columns);
   check_shard_number("dataset_shard_complete", shard);
   // an incomplete shard is an expected state here, not an error
   try {
-    read_complete_shard(dir, shard, columns);
+    read_complete_shard(dir, shard, columns, dataset_id);
     return true;
   } catch (const FileFormatError&) {
     return false;
@@ -515,7 +531,8 @@ bool dataset_shard_complete(const fs::path& dir, int shard,
 }
 
 void write_dataset_manifest(const fs::path& dir, const std::vector<ColumnSpec>& columns,
-                            int shard_count, const std::string& metadata_json) {
+                            int shard_count, const std::string& metadata_json,
+                            const std::string& dataset_id) {
   constexpr const char* kFunction = "write_dataset_manifest";
   check_columns(kFunction, columns);
   if (shard_count < 1) {
@@ -535,7 +552,8 @@ void write_dataset_manifest(const fs::path& dir, const std::vector<ColumnSpec>& 
   Json shards = Json::array();
   std::int64_t rows = 0;
   for (int s = 0; s < shard_count; ++s) {
-    const ShardRecord record = read_complete_shard(dir, s, columns);
+    ShardRecord record = read_complete_shard(dir, s, columns, dataset_id);
+    record.dataset.clear();  // recorded once, at the top of the manifest
     if (record.rows > kMaxInt64 - rows)
       fail(marker_path(dir, s).string(),
            "the rows of shards 0.." + std::to_string(s) + " overflow 64 bits");
@@ -554,7 +572,10 @@ void write_dataset_manifest(const fs::path& dir, const std::vector<ColumnSpec>& 
                          {"columns", column_array},
                          {"shards", shards},
                          {"metadata", metadata}};
-  const std::string text = manifest.dump(2) + "\n";
+  Json out = manifest;
+  if (!dataset_id.empty())
+    out["dataset"] = dataset_id;
+  const std::string text = out.dump(2) + "\n";
   write_file_atomically(dir / "manifest.json", reinterpret_cast<const std::uint8_t*>(text.data()),
                         text.size());
 }

@@ -345,6 +345,23 @@ TEST_F(DatasetTest, IncompleteShardsAreReportedAndRefusedByTheManifest) {
   EXPECT_FALSE(dataset_shard_complete(dir_, 0, kColumns));
 }
 
+TEST_F(DatasetTest, ADatasetIdKeepsShardsOfAnotherDatasetOut) {
+  write_dataset_shard(dir_, 0, kColumns, make_rows(0, 5), "dataset-a");
+  write_dataset_shard(dir_, 1, kColumns, make_rows(5, 3), "dataset-b");  // copied in
+  EXPECT_TRUE(dataset_shard_complete(dir_, 0, kColumns, "dataset-a"));
+  EXPECT_FALSE(dataset_shard_complete(dir_, 1, kColumns, "dataset-a"));
+  EXPECT_FALSE(dataset_shard_complete(dir_, 0, kColumns));  // an id is expected only if given
+  const std::string mixed =
+      file_error_of([&] { write_dataset_manifest(dir_, kColumns, 2, "{}", "dataset-a"); });
+  EXPECT_CONTAINS(mixed, (dir_ / "shards" / "00001.json").string() +
+                             ": shard 1 is not complete: the marker's dataset is \"dataset-b\"");
+  EXPECT_FALSE(fs::exists(dir_ / "manifest.json"));
+  write_dataset_shard(dir_, 1, kColumns, make_rows(5, 3), "dataset-a");
+  write_dataset_manifest(dir_, kColumns, 2, "{}", "dataset-a");
+  EXPECT_CONTAINS(file_text(dir_ / "manifest.json"), "\"dataset\": \"dataset-a\"");
+  EXPECT_EQ(DatasetReader::open(dir_).rows(), 8);
+}
+
 TEST_F(DatasetTest, ManifestBytesAreTheSameWhenWrittenTwice) {
   write_dataset(dir_);
   const std::string first = file_text(dir_ / "manifest.json");

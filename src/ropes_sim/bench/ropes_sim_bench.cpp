@@ -66,7 +66,11 @@ double render_rate(const fs::path& urdf, int threads, int images_per_thread) {
       Kinematics kinematics(model);
       Renderer renderer(scene, 128, 128);
       std::vector<std::uint8_t> image(128 * 128);
-      renderer.render(kinematics.link_poses(), camera, image.data());  // warm up
+      // warm up: llvmpipe compiles its shaders and sizes its buffers on the first frames
+      for (std::size_t i = 0; i < std::min<std::size_t>(qs.size(), 20); ++i) {
+        kinematics.set_positions(qs[i]);
+        renderer.render(kinematics.link_poses(), camera, image.data());
+      }
       ++ready;
       while (!go)
         std::this_thread::yield();

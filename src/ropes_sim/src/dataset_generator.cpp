@@ -7,6 +7,7 @@
 #include <signal.h>
 
 #include <cerrno>
+#include <charconv>
 #include <chrono>
 #include <condition_variable>
 #include <cstring>
@@ -185,30 +186,59 @@ Json read_json(const fs::path& path) {
   }
 }
 
-// the first top-level field in which two metadata objects differ, for the message
-std::string first_difference(const Json& ours, const Json& theirs) {
-  for (const auto& [key, value] : ours.items()) {
-    if (!theirs.contains(key))
-      return key + " (missing there)";
-    if (theirs[key] != value) {
-      std::string a = value.dump(), b = theirs[key].dump();
-      if (a.size() > 60)
-        a = a.substr(0, 57) + "...";
-      if (b.size() > 60)
-        b = b.substr(0, 57) + "...";
-      return key + ": " + a + " now, " + b + " there";
+std::string short_dump(const Json& v) {
+  std::string text = v.dump();
+  return text.size() > 60 ? text.substr(0, 57) + "..." : text;
+}
+
+// the first leaf in which two metadata objects differ, as "/config/rig/cameras/0/target/2:
+// -0.6 now, 30 there", for the message
+std::string first_difference(const Json& ours, const Json& theirs, const std::string& path = "") {
+  if (ours.is_object() && theirs.is_object()) {
+    for (const auto& [key, value] : ours.items()) {
+      if (!theirs.contains(key))
+        return path + "/" + key + " (missing there)";
+      if (theirs[key] != value)
+        return first_difference(value, theirs[key], path + "/" + key);
+    }
+    for (const auto& [key, value] : theirs.items())
+      if (!ours.contains(key))
+        return path + "/" + key + " (only there)";
+  } else if (ours.is_array() && theirs.is_array() && ours.size() == theirs.size()) {
+    for (std::size_t i = 0; i < ours.size(); ++i)
+      if (ours[i] != theirs[i])
+        return first_difference(ours[i], theirs[i], path + "/" + std::to_string(i));
+  }
+  return path + ": " + short_dump(ours) + " now, " + short_dump(theirs) + " there";
+}
+
+// removes temporary files ("<name>.tmp.<pid>", see nn::write_file_atomically) that a killed
+// run left behind; those of a process still running (another --shard run) stay
+void remove_stale_temporaries(const fs::path& dir) {
+  for (const fs::path& d : {dir, dir / "shards"}) {
+    if (!fs::is_directory(d))
+      continue;
+    for (const auto& entry : fs::directory_iterator(d)) {
+      const std::string name = entry.path().filename().string();
+      const auto at = name.rfind(".tmp.");
+      if (at == std::string::npos)
+        continue;
+      const std::string digits = name.substr(at + 5);
+      long pid = 0;
+      const auto [end, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), pid);
+      if (ec != std::errc() || end != digits.data() + digits.size() || pid <= 0)
+        continue;
+      if (::kill(static_cast<pid_t>(pid), 0) == -1 && errno == ESRCH)
+        fs::remove(entry.path());
     }
   }
-  for (const auto& [key, value] : theirs.items())
-    if (!ours.contains(key))
-      return key + " (only there)";
-  return "nothing";
 }
 
 // checks that `dir` is empty, new, or holds this dataset; returns true when it is complete
 bool prepare_directory(const fs::path& dir, const std::string& metadata) {
   const Json ours = Json::parse(metadata);
   const fs::path manifest = dir / "manifest.json", generation = dir / kGenerationFile;
+  remove_stale_temporaries(dir);
   if (fs::exists(manifest)) {
     const Json theirs = read_json(manifest);
     const Json& meta = theirs.contains("metadata") ? theirs["metadata"] : Json();
@@ -241,26 +271,6 @@ bool prepare_directory(const fs::path& dir, const std::string& metadata) {
   return false;
 }
 
-// removes temporary files ("<name>.tmp.<pid>", see nn::write_file_atomically) that a killed
-// run left behind; those of a process still running (another --shard run) stay
-void remove_stale_temporaries(const fs::path& dir) {
-  for (const fs::path& d : {dir, dir / "shards"}) {
-    if (!fs::is_directory(d))
-      continue;
-    for (const auto& entry : fs::directory_iterator(d)) {
-      const std::string name = entry.path().filename().string();
-      const auto at = name.rfind(".tmp.");
-      if (at == std::string::npos)
-        continue;
-      const std::string pid = name.substr(at + 5);
-      if (pid.empty() || pid.find_first_not_of("0123456789") != std::string::npos)
-        continue;
-      if (::kill(static_cast<pid_t>(std::stol(pid)), 0) == -1 && errno == ESRCH)
-        fs::remove(entry.path());
-    }
-  }
-}
-
 // renders the rows of anchors [first, last) into the shard's columns
 void render_anchors(const Setup& s, const DatasetConfig& config, std::uint64_t seed,
                     std::int64_t first, std::int64_t last, int thread, int threads, Worker* w,
@@ -276,9 +286,10 @@ void render_anchors(const Setup& s, const DatasetConfig& config, std::uint64_t s
       for (int c = 0; c < s.cameras; ++c)
         w->renderer.render(X_BL, config.rig.cameras[static_cast<std::size_t>(c)],
                            (*data)[0].data.data() + (row * s.cameras + c) * image_bytes);
-      auto* angles = reinterpret_cast<float*>((*data)[1].data.data()) + row * s.joints;
-      for (int j = 0; j < s.joints; ++j)
-        angles[j] = static_cast<float>(q[static_cast<std::size_t>(j)]);
+      for (int j = 0; j < s.joints; ++j) {
+        const float angle = static_cast<float>(q[static_cast<std::size_t>(j)]);
+        std::memcpy((*data)[1].data.data() + (row * s.joints + j) * 4, &angle, 4);
+      }
       const std::int32_t regime = r;
       const std::int64_t anchor = a;
       std::memcpy((*data)[2].data.data() + row * 4, &regime, 4);
@@ -310,10 +321,9 @@ void check_cameras_see_robot(const Setup& s, const DatasetConfig& config, std::u
   }
 }
 
-}  // namespace
-
-std::string dataset_metadata(const DatasetConfig& config, std::uint64_t seed) {
-  const Setup s(config);
+// the dataset's metadata: everything its bytes depend on, the GL implementation included
+std::string metadata_of(const Setup& s, const DatasetConfig& config, std::uint64_t seed,
+                        const std::string& gl) {
   const Json distribution = read_json(config.distribution);
   Json cameras = Json::array();
   for (const Camera& c : config.rig.cameras)
@@ -327,6 +337,7 @@ std::string dataset_metadata(const DatasetConfig& config, std::uint64_t seed) {
                    {{"name", s.model.name()},
                     {"file", config.robot.filename().string()},
                     {"sha256", nn::sha256_file(config.robot)}}},
+                  {"renderer", gl},
                   {"seed", seed},
                   {"anchors", config.anchors},
                   {"samples_per_anchor", s.regimes},
@@ -340,6 +351,24 @@ std::string dataset_metadata(const DatasetConfig& config, std::uint64_t seed) {
   return meta.dump();
 }
 
+// sizes the dataset container and the writer can hold
+void check_sizes(const Setup& s, const DatasetConfig& config) {
+  if (config.shard_count() > (1 << 24))
+    throw ConfigError(config.file.string() + ": anchors " + std::to_string(config.anchors) +
+                      " at anchors_per_shard " + std::to_string(config.anchors_per_shard) +
+                      " make " + std::to_string(config.shard_count()) +
+                      " shards; expected at most 16777216 (raise anchors_per_shard)");
+  const double bytes =
+      static_cast<double>(config.anchors_per_shard) * s.regimes * s.cameras * s.width * s.height;
+  if (bytes > 2.0 * (1 << 30))
+    throw ConfigError(config.file.string() + ": anchors_per_shard " +
+                      std::to_string(config.anchors_per_shard) + " makes image shards of " +
+                      std::to_string(bytes / (1 << 30)) +
+                      " GiB; expected at most 2 GiB (lower anchors_per_shard)");
+}
+
+}  // namespace
+
 GenerateResult generate_dataset(const DatasetConfig& config, const GenerateOptions& options) {
   if (options.threads < 1 || options.threads > 256)
     throw std::invalid_argument("generate_dataset: threads is " + std::to_string(options.threads) +
@@ -349,35 +378,39 @@ GenerateResult generate_dataset(const DatasetConfig& config, const GenerateOptio
     throw std::invalid_argument("generate_dataset: shard " + std::to_string(options.shard_index) +
                                 "/" + std::to_string(options.shard_count) +
                                 "; expected k/N with 0 <= k < N");
+  // everything that can be wrong with the config is found before the directory is touched
   const Setup s(config);
-  const std::string metadata = dataset_metadata(config, options.seed);
+  check_sizes(s, config);
+  const auto scene = Scene::build(s.model);
+  std::string gl;
+  {
+    Worker probe(s.model, scene, s.width, s.height);
+    check_cameras_see_robot(s, config, options.seed, &probe);
+    gl = probe.renderer.gl_description();
+  }
+  const std::string metadata = metadata_of(s, config, options.seed, gl);
+  const std::string id = nn::sha256_hex(metadata.data(), metadata.size());
   const auto columns = s.columns();
   const int shards = static_cast<int>(config.shard_count());
   GenerateResult result;
+  result.warnings = scene->warnings();
   if (prepare_directory(options.out, metadata)) {
     result.complete = true;
     result.shards_skipped = shards;
     return result;
   }
 
-  remove_stale_temporaries(options.out);
-  // the shards this run owns that are not done yet
+  // the shards this run owns that are not done yet (a shard of another dataset is redone)
   std::vector<int> todo;
   for (int shard = options.shard_index; shard < shards; shard += options.shard_count) {
-    if (nn::dataset_shard_complete(options.out, shard, columns))
+    if (nn::dataset_shard_complete(options.out, shard, columns, id))
       ++result.shards_skipped;
     else
       todo.push_back(shard);
   }
 
   if (!todo.empty()) {
-    const auto scene = Scene::build(s.model);
-    result.warnings = scene->warnings();
     WorkerPool pool(options.threads, s.model, scene, s.width, s.height);
-    pool.run([&](int t, Worker* w) {
-      if (t == 0)
-        check_cameras_see_robot(s, config, options.seed, w);
-    });
     int done = 0;
     for (const int shard : todo) {
       const auto start = std::chrono::steady_clock::now();
@@ -396,7 +429,7 @@ GenerateResult generate_dataset(const DatasetConfig& config, const GenerateOptio
       pool.run([&](int t, Worker* w) {
         render_anchors(s, config, options.seed, first, last, t, pool.size(), w, &data);
       });
-      nn::write_dataset_shard(options.out, shard, columns, data);
+      nn::write_dataset_shard(options.out, shard, columns, data, id);
       ++done;
       const std::int64_t images = rows * s.cameras;
       result.images += images;
@@ -415,9 +448,9 @@ GenerateResult generate_dataset(const DatasetConfig& config, const GenerateOptio
 
   // the manifest, once every shard (from any run) is there
   for (int shard = 0; shard < shards; ++shard)
-    if (!nn::dataset_shard_complete(options.out, shard, columns))
+    if (!nn::dataset_shard_complete(options.out, shard, columns, id))
       return result;
-  nn::write_dataset_manifest(options.out, columns, shards, metadata);
+  nn::write_dataset_manifest(options.out, columns, shards, metadata, id);
   result.complete = true;
   return result;
 }
@@ -445,12 +478,12 @@ void write_preview(const DatasetConfig& config, std::uint64_t seed, std::uint64_
       const int x = gap + r * (tile_w + gap), y = gap + c * (tile_h + label + gap);
       cv::resize(tile, sheet(cv::Rect(x, y + label, tile_w, tile_h)), cv::Size(tile_w, tile_h), 0,
                  0, cv::INTER_NEAREST);
-      // short labels: "yaw45: observational", "do(joint2)=1"
+      // short labels: "observational" or "yaw45 obs." (the camera), "do(joint2)=1"
       std::string text = s.sampler.regime_names()[static_cast<std::size_t>(r)];
       for (std::size_t at; (at = text.find("panda_joint")) != std::string::npos;)
         text.replace(at, 11, "joint");
       if (r == 0 && s.cameras > 1)
-        text = cam.name + ": " + text;
+        text = cam.name + " obs.";
       cv::putText(sheet, text, cv::Point(x + 2, y + label - 6), cv::FONT_HERSHEY_SIMPLEX, 0.4,
                   cv::Scalar(0), 1, cv::LINE_AA);
     }

@@ -5,7 +5,9 @@
 #include <GL/osmesa.h>
 // osmesa.h brings in GL/gl.h
 #include <GL/glext.h>
+
 #include <malloc.h>
+#include <thread>
 
 namespace ropes::sim {
 
@@ -101,6 +103,25 @@ Eigen::Matrix4f to_gl(const Eigen::Matrix4d& m) {
 }  // namespace
 
 struct Renderer::Impl {
+  // the context is released (and unbound from this thread) however construction ends
+  ~Impl() {
+    if (!context)
+      return;
+    if (OSMesaGetCurrentContext() == context)
+      OSMesaMakeCurrent(nullptr, nullptr, 0, 0, 0);
+    OSMesaDestroyContext(context);
+  }
+
+  // a context is current on one thread at a time: every call stays on the creating thread
+  void check_thread(const char* function) const {
+    if (std::this_thread::get_id() != thread) {
+      throw std::logic_error(std::string("Renderer::") + function +
+                             ": called on another thread than the one that made the Renderer; "
+                             "make one Renderer per thread, on that thread");
+    }
+  }
+
+  std::thread::id thread = std::this_thread::get_id();
   std::shared_ptr<const Scene> scene;
   OSMesaContext context = nullptr;
   std::vector<std::uint8_t> rgba;  // (height, width, 4), the context's colour buffer
@@ -301,13 +322,7 @@ Renderer::Renderer(std::shared_ptr<const Scene> scene, int width, int height)
   impl_->setup();
 }
 
-Renderer::~Renderer() {
-  if (!impl_ || !impl_->context)
-    return;
-  if (OSMesaGetCurrentContext() == impl_->context)
-    OSMesaMakeCurrent(nullptr, nullptr, 0, 0, 0);
-  OSMesaDestroyContext(impl_->context);
-}
+Renderer::~Renderer() = default;
 
 void Renderer::render(const std::vector<Eigen::Isometry3d>& X_BL, const Camera& camera,
                       std::uint8_t* image) {
@@ -317,6 +332,7 @@ void Renderer::render(const std::vector<Eigen::Isometry3d>& X_BL, const Camera& 
                                 std::to_string(impl_->scene->model().links().size()) +
                                 " (one per link of '" + impl_->scene->model().name() + "')");
   camera.check();
+  impl_->check_thread("render");
   impl_->make_current(width_, height_);
   impl_->draw(X_BL, camera, width_, height_, false);
   const std::size_t n = static_cast<std::size_t>(width_) * height_;
@@ -333,8 +349,11 @@ std::vector<std::uint8_t> Renderer::render(const std::vector<Eigen::Isometry3d>&
 
 int Renderer::robot_pixels(const std::vector<Eigen::Isometry3d>& X_BL, const Camera& camera) {
   if (X_BL.size() != impl_->scene->model().links().size())
-    throw std::invalid_argument("Renderer::robot_pixels: wrong number of link poses");
+    throw std::invalid_argument("Renderer::robot_pixels: " + std::to_string(X_BL.size()) +
+                                " link poses, expected " +
+                                std::to_string(impl_->scene->model().links().size()));
   camera.check();
+  impl_->check_thread("robot_pixels");
   impl_->make_current(width_, height_);
   impl_->draw(X_BL, camera, width_, height_, true);
   int count = 0;
@@ -345,6 +364,7 @@ int Renderer::robot_pixels(const std::vector<Eigen::Isometry3d>& X_BL, const Cam
 }
 
 std::string Renderer::gl_description() const {
+  impl_->check_thread("gl_description");
   impl_->make_current(width_, height_);
   const auto* renderer = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
   const auto* version = reinterpret_cast<const char*>(glGetString(GL_VERSION));

@@ -1,8 +1,10 @@
 #include "ropes_sim/robot_model.hpp"
 
+#include <console_bridge/console.h>
 #include <urdf_parser/urdf_parser.h>
 
 #include <fstream>
+#include <mutex>
 #include <queue>
 #include <sstream>
 
@@ -58,6 +60,28 @@ Visual to_visual(const urdf::Visual& v, const std::string& source, const std::st
   return out;
 }
 
+// urdfdom reports what is wrong through console_bridge, which prints it; collect the
+// messages instead, so that they go into the one error the caller sees
+class CollectMessages : public console_bridge::OutputHandler {
+ public:
+  void log(const std::string& text, console_bridge::LogLevel level, const char*, int) override {
+    if (level >= console_bridge::CONSOLE_BRIDGE_LOG_WARN)
+      messages += (messages.empty() ? "" : "; ") + text;
+  }
+  std::string messages;
+};
+
+urdf::ModelInterfaceSharedPtr parse_urdf(const std::string& xml, std::string* messages) {
+  static std::mutex mutex;  // console_bridge's handler is process-wide
+  std::lock_guard<std::mutex> lock(mutex);
+  CollectMessages collect;
+  console_bridge::useOutputHandler(&collect);
+  urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(xml);
+  console_bridge::restorePreviousOutputHandler();
+  *messages = collect.messages;
+  return model;
+}
+
 }  // namespace
 
 RobotModel RobotModel::load(const std::filesystem::path& path) {
@@ -71,11 +95,11 @@ RobotModel RobotModel::load(const std::filesystem::path& path) {
 
 RobotModel RobotModel::parse(const std::string& xml, const std::string& source,
                              const std::filesystem::path& base_dir) {
-  const urdf::ModelInterfaceSharedPtr urdf = urdf::parseURDF(xml);
+  std::string messages;
+  const urdf::ModelInterfaceSharedPtr urdf = parse_urdf(xml, &messages);
   if (!urdf) {
-    throw ModelError(source +
-                     ": not a valid URDF (urdfdom could not parse it; its messages "
-                     "above say where)");
+    throw ModelError(source + ": not a valid URDF (urdfdom: " +
+                     (messages.empty() ? std::string("no details") : messages) + ")");
   }
   const urdf::LinkConstSharedPtr root = urdf->getRoot();
   if (!root)

@@ -117,8 +117,8 @@ std::shared_ptr<const Scene> Scene::build(const RobotModel& model, const SceneOp
   if (options.floor) {
     SceneItem floor;
     const double e = 2 * options.floor_half_extent;
-    floor.mesh = add_mesh(make_box(Eigen::Vector3d(e, e, 1e-3)));
-    floor.X_LV.translation() = Eigen::Vector3d(0, 0, options.floor_z - 0.5e-3);
+    floor.mesh = add_mesh(make_box(Eigen::Vector3d(e, e, 0.02)));
+    floor.X_LV.translation() = Eigen::Vector3d(0, 0, options.floor_z - 0.01);
     floor.rgb = options.floor_rgb;
     scene->items_.push_back(floor);
   }

@@ -5,7 +5,7 @@
 # usage: generate_cli_test.sh <ropes-generate> <dataset configs dir>
 set -euo pipefail
 gen=$1
-configs=$2
+configs=$(cd "$2" && pwd)
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 py=/usr/bin/python3
@@ -67,6 +67,20 @@ done_before=$(ls "$work/killed/shards/" | grep -c '^[0-9]*\.json$' || true)
 diff -r "$work/ref" "$work/killed" || fail "resumed dataset differs from the uninterrupted one"
 echo "resume: killed after $done_before of 30 shards; resumed dataset is byte-identical"
 
+# 2b. the states a kill can leave, made by hand: a shard without its marker, a column file
+# cut short, temporary files of dead processes; and a shard of another dataset copied in
+cp -r "$work/killed" "$work/hurt"
+rm "$work/hurt/manifest.json" "$work/hurt/shards/00007.json"
+truncate -s 1000 "$work/hurt/shards/images-00012.npy"
+echo partial > "$work/hurt/shards/angles-00020.npy.tmp.999999999"
+echo partial > "$work/hurt/generation.json.tmp.999999998"
+"$gen" --config "$configs/1c.json" --seed 10 --anchors 300 --anchors-per-shard 10 \
+  --out "$work/seed10" --shard 3/30 >/dev/null
+cp "$work/seed10/shards/"*00003* "$work/hurt/shards/"
+"$gen" "${args[@]}" --out "$work/hurt" | tail -1
+diff -r "$work/ref" "$work/hurt" || fail "repaired dataset differs from the uninterrupted one"
+echo "repair: missing marker, truncated file, stale temporaries, foreign shard: byte-identical"
+
 # 3. the preview
 "$gen" --config "$configs/2c.json" --preview "$work/p.png" --seed 1 --anchor 3 >/dev/null
 [ "$(head -c 8 "$work/p.png" | od -An -tx1 | tr -d ' ')" = "89504e470d0a1a0a" ] || fail "no PNG"
@@ -78,10 +92,11 @@ expect_error() {  # expected-text command...
   out=$("$@" 2>&1) || rc=$?
   [ $rc -ne 0 ] || fail "exit 0 for: $*"
   echo "$out" | grep -qF -- "$want" || fail "message '$out' lacks '$want'"
+  out_last=$out
   echo "refused ($rc): $out"
 }
 before=$(cd "$work/ref" && find . -type f -exec sha256sum {} + | sort)
-expect_error "holds a different dataset (manifest.json: seed: 10 now, 9 there)" \
+expect_error "holds a different dataset (manifest.json: /seed: 10 now, 9 there)" \
   "$gen" --config "$configs/1c.json" --seed 10 --anchors 300 --anchors-per-shard 10 --out "$work/ref"
 after=$(cd "$work/ref" && find . -type f -exec sha256sum {} + | sort)
 [ "$before" = "$after" ] || fail "a refused run changed the dataset"
@@ -89,6 +104,16 @@ expect_error "--seed is required" "$gen" --config "$configs/1c.json" --out "$wor
 expect_error "--threads is '0'" "$gen" --config "$configs/1c.json" --out "$work/x" --seed 1 --threads 0
 expect_error "--shard is '2/2'" "$gen" --config "$configs/1c.json" --out "$work/x" --seed 1 --shard 2/2
 expect_error "neither a file nor an installed config" "$gen" --config nope --out "$work/x" --seed 1
+expect_error "--preview writes one PNG" "$gen" --config "$configs/1c.json" --preview "$work/q.png" --out "$work/x"
+echo '<robot name="r"><link name="a"/><joint name="j" type="revolute">' > "$work/bad.urdf"
+sed -e "s|\.\./urdf/panda.urdf|$work/bad.urdf|" -e "s|\.\./distributions|$configs/../distributions|" \
+  "$configs/1c.json" > "$work/badrobot.json"
+expect_error "bad.urdf: not a valid URDF (urdfdom: " "$gen" --config "$work/badrobot.json" --out "$work/x" --seed 1
+[ "$(echo "$out_last" | wc -l)" -eq 1 ] || fail "more than one line for a bad URDF: $out_last"
+sed -e 's|"single_camera"|{"name": "sky", "cameras": [{"name": "up", "target": [0, 0, 30]}]}|' \
+  -e "s|\.\./|$configs/../|g" "$configs/1c.json" > "$work/sky.json"
+expect_error "rig camera 'up'" "$gen" --config "$work/sky.json" --out "$work/sky" --seed 1
+[ ! -e "$work/sky" ] || fail "a refused config left $work/sky behind"
 echo '{"name": "x"' > "$work/broken.json"
 expect_error "broken.json: not JSON" "$gen" --config "$work/broken.json" --out "$work/x" --seed 1
 echo PASS

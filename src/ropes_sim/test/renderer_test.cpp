@@ -99,6 +99,7 @@ TEST(Renderer, LinkOriginsProjectOntoTheRobot) {
   bare.floor = false;
   Fixture f(kPandaUrdf, bare);
   Renderer r(f.scene, 128, 128);
+  int checked = 0;
   for (const CameraRig& rig : {CameraRig::single_camera(), CameraRig::two_cameras()}) {
     for (const Camera& cam : rig.cameras) {
       for (const auto& q : random_configurations(10, 3)) {
@@ -124,10 +125,12 @@ TEST(Renderer, LinkOriginsProjectOntoTheRobot) {
               robot += image[static_cast<std::size_t>((static_cast<int>(v) + dy) * 128 +
                                                       static_cast<int>(u) + dx)] < 250;
           EXPECT_GT(robot, 0) << cam.name << " link " << link << " at (" << u << ", " << v << ")";
+          ++checked;
         }
       }
     }
   }
+  EXPECT_GE(checked, 3 * 10 * 7 * 9 / 10);  // nearly every origin is in view
 }
 
 TEST(Renderer, ACameraLookingAwaySeesNoRobot) {
@@ -210,23 +213,6 @@ TEST(RendererGolden, PinnedImagesOfBothRigs) {
   } else if (!exact) {
     std::cout << "note: GL is '" << r.gl_description() << "', the golden images were made on '"
               << recorded_gl << "': compared within a tolerance, not by hash\n";
-  }
-}
-
-TEST(Scene, AMeshThatDoesNotExistNamesTheUrdfTheLinkAndThePath) {
-  const std::string urdf = R"(<robot name="r"><link name="base"><visual><geometry>
-      <mesh filename="package://nowhere/meshes/x.obj"/></geometry></visual></link></robot>)";
-  const RobotModel model =
-      RobotModel::parse(urdf, "/tmp/r.urdf", fs::temp_directory_path() / "ropes_no_such_dir");
-  try {
-    Scene::build(model);
-    FAIL() << "a missing mesh was accepted";
-  } catch (const ModelError& e) {
-    const std::string m = e.what();
-    EXPECT_NE(m.find("/tmp/r.urdf: link 'base': mesh 'package://nowhere/meshes/x.obj' does not "
-                     "exist (looked for "),
-              std::string::npos)
-        << m;
   }
 }
 

@@ -30,7 +30,7 @@ options:
                          finds every shard present writes manifest.json
   --preview PNG          write a contact sheet of one anchor instead of a dataset
   --anchor A             the anchor of --preview (default 0)
-  --scale F              --preview tile scale (default 2)
+  --scale S              --preview tile scale, an integer 1..16 (default 2)
 )";
 
 struct UsageError : std::runtime_error {
@@ -127,6 +127,8 @@ int run(int argc, char** argv) {
     config.anchors_per_shard = per_shard;
 
   if (!preview.empty()) {
+    if (!out.empty() || options.threads != 1 || options.shard_count != 1)
+      throw UsageError("--preview writes one PNG: --out, --threads and --shard do not apply");
     ropes::sim::write_preview(config, seed, anchor, preview, scale);
     std::cout << "ropes-generate: wrote " << preview << " (anchor " << anchor << ", seed " << seed
               << ")\n";

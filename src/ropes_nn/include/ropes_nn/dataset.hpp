@@ -9,7 +9,7 @@
 ///   DIR/shards/<column>-<shard:05d>.npy  dim 0 = the shard's rows, then the column's row shape
 ///   DIR/shards/<shard:05d>.json          the shard's marker, written after its column files:
 ///       {"files": {column: {"bytes": B, "path": "shards/<column>-<shard:05d>.npy",
-///                           "sha256": hex}}, "rows": n}
+///                           "sha256": hex}}, "rows": n, "dataset": id (when given)}
 ///   DIR/manifest.json                    written last:
 ///       {"columns": [{"dtype": "f32", "name": ..., "row_shape": [...]}, ...],
 ///        "format": "ropes-dataset", "format_version": 1, "metadata": {caller's object},
@@ -61,16 +61,24 @@ inline constexpr int kDatasetFormatVersion = 1;
 /// the columns', another dtype or shape, rows that differ or are 0, or data bytes that do
 /// not match the shape; nothing is written then. Throws FileFormatError naming the file
 /// when a file cannot be written. Cost: one SHA-256 pass over the data, plus the writes.
+///
+/// `dataset_id` (optional) names the dataset the shard belongs to (a writer passes, say, a
+/// hash of its configuration); it is recorded in the marker as "dataset", and
+/// dataset_shard_complete / write_dataset_manifest given an id accept only shards with that
+/// id, so that shards of two datasets copied into one directory are never mixed.
 void write_dataset_shard(const std::filesystem::path& dir, int shard,
-                         const std::vector<ColumnSpec>& columns, const std::vector<NpyArray>& data);
+                         const std::vector<ColumnSpec>& columns, const std::vector<NpyArray>& data,
+                         const std::string& dataset_id = "");
 
 /// True iff shard `shard` of `dir` is complete (see the file comment) for `columns`; false,
 /// not an exception, when the marker is missing, unreadable or malformed, a file is missing
 /// or has another size, or a header disagrees with a column. Reads the marker and each
 /// file's .npy header, not the data (no hashing). Throws std::invalid_argument only for bad
 /// column specs or shard < 0, as write_dataset_shard.
+/// With a `dataset_id`, a marker with another (or no) id is not complete either.
 bool dataset_shard_complete(const std::filesystem::path& dir, int shard,
-                            const std::vector<ColumnSpec>& columns);
+                            const std::vector<ColumnSpec>& columns,
+                            const std::string& dataset_id = "");
 
 /// Writes DIR/manifest.json for shards 0 .. shard_count - 1, from their markers.
 /// `metadata_json` must be the text of a JSON object (it is stored parsed, so formatting
@@ -78,9 +86,11 @@ bool dataset_shard_complete(const std::filesystem::path& dir, int shard,
 /// metadata that is not a JSON object; FileFormatError naming the marker of the first
 /// shard that is not complete, and why; FileFormatError naming manifest.json when it
 /// cannot be written. Same columns, markers and metadata give the same bytes.
+/// With a `dataset_id`, every marker must carry it (FileFormatError naming the shard
+/// otherwise) and the manifest records it once, as "dataset".
 void write_dataset_manifest(const std::filesystem::path& dir,
                             const std::vector<ColumnSpec>& columns, int shard_count,
-                            const std::string& metadata_json);
+                            const std::string& metadata_json, const std::string& dataset_id = "");
 
 /// A complete dataset opened for reading: the manifest parsed and checked, each shard file
 /// open (one file descriptor per column per shard, held until the reader is destroyed).

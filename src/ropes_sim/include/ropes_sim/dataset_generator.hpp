@@ -10,8 +10,10 @@
 ///   regime  i32 [n]                           index into the manifest's regime_names
 ///   anchor  i64 [n]
 /// The manifest's metadata records the format, the full config (rig written out), the
-/// distribution as read, the URDF's file name and SHA-256, the seed, the counts and the
-/// camera, joint and regime names.
+/// distribution as read, the URDF's file name and SHA-256, the GL renderer (images are exact
+/// for one), the seed, the counts and the camera, joint and regime names. Its SHA-256 is
+/// the dataset id in every shard marker, so a shard of another dataset (another seed,
+/// config or GL) copied into the directory is redone, never mixed in.
 ///
 /// A dataset is a pure function of (config, seed): each anchor draws from its own Philox
 /// stream and each image depends only on its configuration and camera, so any thread count
@@ -54,18 +56,14 @@ struct GenerateResult {
   std::vector<std::string> warnings;  // the scene's (missing materials, ...)
 };
 
-/// The dataset's metadata (manifest "metadata") as JSON text. Throws ConfigError naming the
-/// distribution file and the joint when one of its joints is not a movable joint of the
-/// robot, ModelError for a robot that cannot be loaded.
-std::string dataset_metadata(const DatasetConfig& config, std::uint64_t seed);
-
 /// Generates (or resumes) the dataset in options.out. Throws std::invalid_argument for bad
 /// options (threads < 1, shard index outside [0, count)); std::runtime_error naming the
-/// directory and what differs when it holds a different dataset (another config or seed),
-/// or is not empty and holds no dataset (nothing is written then); ConfigError for a camera
-/// that sees (almost) none of the robot in anchor 0's observational configuration, naming
-/// the camera and its parameters; ModelError/MeshError/RenderError from loading and
-/// rendering. Cost: about a millisecond per 128x128 image of the primitive Panda per thread.
+/// directory and the first field that differs when it holds a different dataset (another
+/// config, seed or GL), or is not empty and holds no dataset; ConfigError for a camera that
+/// sees (almost) none of the robot in anchor 0's observational configuration (naming the
+/// camera and its parameters) or for shards too many or too large; ModelError/MeshError/
+/// RenderError from loading. All of these are found before the directory is touched. Cost: about a
+/// millisecond per 128x128 image of the primitive Panda per thread.
 GenerateResult generate_dataset(const DatasetConfig& config, const GenerateOptions& options);
 
 /// Renders anchor `anchor` under `seed` in every regime and camera and writes a PNG contact

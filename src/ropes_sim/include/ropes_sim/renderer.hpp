@@ -1,9 +1,10 @@
 #pragma once
 /// @file renderer.hpp
 /// Renderer: draws a Scene offscreen with OSMesa (no display, no window system) into grey
-/// 8-bit images. Each Renderer owns one OSMesa context; use one Renderer per thread (the
-/// Scene is shared). An image depends only on the scene, the link poses and the camera:
-/// every render clears all state it uses, so it never depends on what was drawn before,
+/// 8-bit images. Each Renderer owns one OSMesa context, current on the thread that made it:
+/// make, use and destroy a Renderer on one thread (other threads get std::logic_error), one
+/// Renderer per thread; the Scene is shared. An image depends only on the scene, the link poses and
+/// the camera: every render clears all state it uses, so it never depends on what was drawn before,
 /// and the same inputs give the same bytes on any thread.
 
 #include <Eigen/Geometry>
@@ -38,10 +39,10 @@ class Renderer {
   int width() const { return width_; }
   int height() const { return height_; }
 
-  /// Renders the robot with link poses X_BL (one per model link, in the robot's root frame,
-  /// as Kinematics::link_pose gives them) seen by `camera` into `image`: width * height
-  /// bytes, rows top to bottom. Throws std::invalid_argument for a wrong pose count or a bad
-  /// camera.
+  /// Renders the robot with link poses X_BL (one per model link, in the robot's root frame
+  /// B, which is what Kinematics::link_poses calls its world; the Scene places B in W) seen by
+  /// `camera` into `image`: width * height bytes, rows top to bottom. Throws std::invalid_argument
+  /// for a wrong pose count or a bad camera.
   void render(const std::vector<Eigen::Isometry3d>& X_BL, const Camera& camera,
               std::uint8_t* image);
   std::vector<std::uint8_t> render(const std::vector<Eigen::Isometry3d>& X_BL,

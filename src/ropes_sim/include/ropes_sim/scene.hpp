@@ -19,7 +19,7 @@ namespace ropes::sim {
 
 /// Where things are and how they are lit. Defaults: Panda-Gym's scene (robot base at
 /// (-0.6, 0, 0); table 1.1 x 0.7 x 0.4 with its top at z = 0, centred at x = -0.3; floor
-/// plane at z = -0.4; white background) and PyBullet TinyRenderer's shading:
+/// 6 x 6 m with its top at z = -0.4; white background) and PyBullet TinyRenderer's shading:
 /// colour = c * (ambient + diffuse * max(0, n.l)) + specular * max(0, r.v)^shininess, with
 /// l = normalize(-50, 30, 100) in W. Images are grey: 0.299 R + 0.587 G + 0.114 B.
 struct SceneOptions {
@@ -30,7 +30,7 @@ struct SceneOptions {
   Eigen::Vector3f table_rgb = Eigen::Vector3f(0.95f, 0.95f, 0.95f);
   bool floor = true;
   double floor_z = -0.4;
-  double floor_half_extent = 20.0;
+  double floor_half_extent = 3.0;  // Panda-Gym's plane: a 6 x 6 x 0.02 box, top at floor_z
   Eigen::Vector3f floor_rgb = Eigen::Vector3f(0.15f, 0.15f, 0.15f);
   Eigen::Vector3f background_rgb = Eigen::Vector3f(1.0f, 1.0f, 1.0f);
   Eigen::Vector3d light_direction = Eigen::Vector3d(-50.0, 30.0, 100.0);
