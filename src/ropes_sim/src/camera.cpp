@@ -55,38 +55,52 @@ Eigen::Matrix4d Camera::projection(int width, int height) const {
   return P;
 }
 
-void Camera::check() const {
+std::string Camera::problem() const {
   if (!target.allFinite())
-    throw std::invalid_argument("camera '" + name + "': target is not finite");
+    return "camera '" + name + "': target is not finite";
   if (!(distance > 0.0) || !std::isfinite(distance))
-    throw std::invalid_argument(field(*this, "distance", distance, "a finite value > 0 (m)"));
+    return field(*this, "distance", distance, "a finite value > 0 (m)");
   if (!std::isfinite(yaw_deg))
-    throw std::invalid_argument(field(*this, "yaw_deg", yaw_deg, "a finite angle"));
+    return field(*this, "yaw_deg", yaw_deg, "a finite angle");
   if (!(pitch_deg > -90.0 && pitch_deg < 90.0))
-    throw std::invalid_argument(field(*this, "pitch_deg", pitch_deg,
-                                      "a value in (-90, 90) (the view must not be vertical)"));
+    return field(*this, "pitch_deg", pitch_deg,
+                 "a value in (-90, 90) (the view must not be vertical)");
   if (!(fov_y_deg > 0.0 && fov_y_deg < 180.0))
-    throw std::invalid_argument(field(*this, "fov_y_deg", fov_y_deg, "a value in (0, 180)"));
+    return field(*this, "fov_y_deg", fov_y_deg, "a value in (0, 180)");
   if (!(near > 0.0) || !std::isfinite(near))
-    throw std::invalid_argument(field(*this, "near", near, "a finite value > 0"));
+    return field(*this, "near", near, "a finite value > 0");
   if (!(far > near) || !std::isfinite(far))
-    throw std::invalid_argument(field(*this, "far", far, "a finite value > near"));
+    return field(*this, "far", far, "a finite value > near");
+  return "";
+}
+
+void Camera::check() const {
+  const std::string why = problem();
+  if (!why.empty())
+    throw std::invalid_argument(why);
+}
+
+std::string CameraRig::problem() const {
+  if (cameras.empty())
+    return "camera rig '" + name + "' has no camera";
+  if (width < 8 || width > 4096 || height < 8 || height > 4096)
+    return "camera rig '" + name + "': image size " + std::to_string(width) + "x" +
+           std::to_string(height) + ", expected width and height in [8, 4096]";
+  std::set<std::string> names;
+  for (const Camera& c : cameras) {
+    const std::string why = c.problem();
+    if (!why.empty())
+      return why;
+    if (!names.insert(c.name).second)
+      return "camera rig '" + name + "': two cameras are called '" + c.name + "'";
+  }
+  return "";
 }
 
 void CameraRig::check() const {
-  if (cameras.empty())
-    throw std::invalid_argument("camera rig '" + name + "' has no camera");
-  if (width < 8 || width > 4096 || height < 8 || height > 4096)
-    throw std::invalid_argument("camera rig '" + name + "': image size " + std::to_string(width) +
-                                "x" + std::to_string(height) +
-                                ", expected width and height in [8, 4096]");
-  std::set<std::string> names;
-  for (const Camera& c : cameras) {
-    c.check();
-    if (!names.insert(c.name).second)
-      throw std::invalid_argument("camera rig '" + name + "': two cameras are called '" + c.name +
-                                  "'");
-  }
+  const std::string why = problem();
+  if (!why.empty())
+    throw std::invalid_argument(why);
 }
 
 namespace {

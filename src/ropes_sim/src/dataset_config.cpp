@@ -80,11 +80,9 @@ Camera camera(const Json& v, const std::string& file, const std::string& field) 
   opt("fov_y_deg", &c.fov_y_deg);
   opt("near", &c.near);
   opt("far", &c.far);
-  try {
-    c.check();
-  } catch (const std::invalid_argument& e) {
-    fail(file, field + ": " + e.what());
-  }
+  const std::string why = c.problem();
+  if (!why.empty())
+    fail(file, field + ": " + why);
   return c;
 }
 
@@ -163,11 +161,9 @@ DatasetConfig DatasetConfig::load(const std::filesystem::path& path) {
       integer(required(image, "width", file, "image "), file, "image.width", 8, 4096));
   c.rig.height = static_cast<int>(
       integer(required(image, "height", file, "image "), file, "image.height", 8, 4096));
-  try {
-    c.rig.check();
-  } catch (const std::invalid_argument& e) {
-    fail(file, std::string("rig: ") + e.what());
-  }
+  const std::string why = c.rig.problem();
+  if (!why.empty())
+    fail(file, "rig: " + why);
   c.anchors = integer(required(config, "anchors", file, ""), file, "anchors", 1, 1LL << 40);
   c.anchors_per_shard = integer(required(config, "anchors_per_shard", file, ""), file,
                                 "anchors_per_shard", 1, 1LL << 20);

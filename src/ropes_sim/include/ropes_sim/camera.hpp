@@ -34,8 +34,10 @@ struct Camera {
   Eigen::Isometry3d X_CW() const;
   /// The OpenGL projection matrix for an image `width` x `height`.
   Eigen::Matrix4d projection(int width, int height) const;
-  /// Throws std::invalid_argument naming the camera, the field, the value and what is
-  /// expected when a field is out of range or not finite.
+  /// What is wrong with the camera: a message naming the camera, the field, the value and
+  /// what is expected when a field is out of range or not finite; "" when nothing is.
+  std::string problem() const;
+  /// Throws std::invalid_argument with problem() when there is one.
   void check() const;
 };
 
@@ -45,8 +47,10 @@ struct CameraRig {
   std::vector<Camera> cameras;
   int width = 128, height = 128;
 
-  /// Throws std::invalid_argument for no camera, duplicate names, a size outside
-  /// [8, 4096] or a bad camera (Camera::check).
+  /// What is wrong with the rig ("" when nothing is): no camera, duplicate names, a size
+  /// outside [8, 4096] or a bad camera (Camera::problem).
+  std::string problem() const;
+  /// Throws std::invalid_argument with problem() when there is one.
   void check() const;
 
   /// The single-camera rig of the 1C experiments: perpendicular to the arm's plane
