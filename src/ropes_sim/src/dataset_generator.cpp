@@ -10,6 +10,7 @@
 #include <charconv>
 #include <chrono>
 #include <condition_variable>
+#include <cstdio>
 #include <cstring>
 #include <exception>
 #include <fstream>
@@ -455,43 +456,111 @@ GenerateResult generate_dataset(const DatasetConfig& config, const GenerateOptio
   return result;
 }
 
-void write_preview(const DatasetConfig& config, std::uint64_t seed, std::uint64_t anchor,
-                   const std::filesystem::path& png, int scale) {
-  if (scale < 1 || scale > 16)
-    throw std::invalid_argument("write_preview: scale is " + std::to_string(scale) +
-                                "; expected 1..16");
-  const Setup s(config);
-  const auto scene = Scene::build(s.model);
-  Worker w(s.model, scene, s.width, s.height);
-  check_cameras_see_robot(s, config, seed, &w);
-  const auto samples = s.sampler.sample_anchor(seed, anchor);
+namespace {
+
+// one tile of a contact sheet: a configuration seen by one camera, labelled
+struct Tile {
+  int row = 0, column = 0, camera = 0;
+  std::vector<double> q;  // the distribution's joints
+  std::string label;
+};
+
+// renders the tiles into a grid (rows x columns) and writes it as a PNG
+void write_sheet(const Setup& s, const DatasetConfig& config, Worker* w,
+                 const std::vector<Tile>& tiles, int rows, int columns, int scale,
+                 const std::filesystem::path& png) {
   const int tile_w = s.width * scale, tile_h = s.height * scale, label = 22, gap = 4;
-  cv::Mat sheet(s.cameras * (tile_h + label) + (s.cameras + 1) * gap,
-                s.regimes * tile_w + (s.regimes + 1) * gap, CV_8UC1, cv::Scalar(255));
-  for (int r = 0; r < s.regimes; ++r) {
-    w.kinematics.set_positions(s.coordinates(samples[static_cast<std::size_t>(r)]));
-    const auto X_BL = w.kinematics.link_poses();
-    for (int c = 0; c < s.cameras; ++c) {
-      const Camera& cam = config.rig.cameras[static_cast<std::size_t>(c)];
-      std::vector<std::uint8_t> image = w.renderer.render(X_BL, cam);
-      const cv::Mat tile(s.height, s.width, CV_8UC1, image.data());
-      const int x = gap + r * (tile_w + gap), y = gap + c * (tile_h + label + gap);
-      cv::resize(tile, sheet(cv::Rect(x, y + label, tile_w, tile_h)), cv::Size(tile_w, tile_h), 0,
-                 0, cv::INTER_NEAREST);
-      // short labels: "observational" or "yaw45 obs." (the camera), "do(joint2)=1"
-      std::string text = s.sampler.regime_names()[static_cast<std::size_t>(r)];
-      for (std::size_t at; (at = text.find("panda_joint")) != std::string::npos;)
-        text.replace(at, 11, "joint");
-      if (r == 0 && s.cameras > 1)
-        text = cam.name + " obs.";
-      cv::putText(sheet, text, cv::Point(x + 2, y + label - 6), cv::FONT_HERSHEY_SIMPLEX, 0.4,
-                  cv::Scalar(0), 1, cv::LINE_AA);
-    }
+  cv::Mat sheet(rows * (tile_h + label) + (rows + 1) * gap, columns * tile_w + (columns + 1) * gap,
+                CV_8UC1, cv::Scalar(255));
+  for (const Tile& t : tiles) {
+    w->kinematics.set_positions(s.coordinates(t.q));
+    const std::vector<std::uint8_t> image = w->renderer.render(
+        w->kinematics.link_poses(), config.rig.cameras[static_cast<std::size_t>(t.camera)]);
+    const cv::Mat tile(s.height, s.width, CV_8UC1, const_cast<std::uint8_t*>(image.data()));
+    const int x = gap + t.column * (tile_w + gap), y = gap + t.row * (tile_h + label + gap);
+    cv::resize(tile, sheet(cv::Rect(x, y + label, tile_w, tile_h)), cv::Size(tile_w, tile_h), 0, 0,
+               cv::INTER_NEAREST);
+    cv::putText(sheet, t.label, cv::Point(x + 2, y + label - 6), cv::FONT_HERSHEY_SIMPLEX, 0.4,
+                cv::Scalar(0), 1, cv::LINE_AA);
   }
   std::vector<std::uint8_t> bytes;
   if (!cv::imencode(".png", sheet, bytes))
     throw std::runtime_error(png.string() + ": OpenCV could not encode the PNG");
   nn::write_file_atomically(png, bytes.data(), bytes.size());
+}
+
+void check_scale(int scale) {
+  if (scale < 1 || scale > 16)
+    throw std::invalid_argument("preview scale is " + std::to_string(scale) + "; expected 1..16");
+}
+
+}  // namespace
+
+void write_preview(const DatasetConfig& config, std::uint64_t seed, std::uint64_t anchor,
+                   const std::filesystem::path& png, int scale) {
+  check_scale(scale);
+  const Setup s(config);
+  const auto scene = Scene::build(s.model);
+  Worker w(s.model, scene, s.width, s.height);
+  check_cameras_see_robot(s, config, seed, &w);
+  const auto samples = s.sampler.sample_anchor(seed, anchor);
+  std::vector<Tile> tiles;
+  for (int c = 0; c < s.cameras; ++c) {
+    for (int r = 0; r < s.regimes; ++r) {
+      // short labels: "observational" or "yaw45 obs." (the camera), "do(joint2)=1"
+      std::string text = s.sampler.regime_names()[static_cast<std::size_t>(r)];
+      for (std::size_t at; (at = text.find("panda_joint")) != std::string::npos;)
+        text.replace(at, 11, "joint");
+      if (r == 0 && s.cameras > 1)
+        text = config.rig.cameras[static_cast<std::size_t>(c)].name + " obs.";
+      tiles.push_back({c, r, c, samples[static_cast<std::size_t>(r)], text});
+    }
+  }
+  write_sheet(s, config, &w, tiles, s.cameras, s.regimes, scale, png);
+}
+
+void write_extremes_preview(const DatasetConfig& config, std::uint64_t seed,
+                            const std::filesystem::path& png, int scale) {
+  check_scale(scale);
+  const Setup s(config);
+  const auto scene = Scene::build(s.model);
+  Worker w(s.model, scene, s.width, s.height);
+  check_cameras_see_robot(s, config, seed, &w);
+  const Eigen::Isometry3d X_WB = scene->X_WB();
+  // per camera, the samples whose link origins reach furthest left, right, up and down
+  const char* const kSides[4] = {"left", "right", "top", "bottom"};
+  std::vector<Tile> tiles;
+  for (int c = 0; c < s.cameras; ++c) {
+    const Camera& cam = config.rig.cameras[static_cast<std::size_t>(c)];
+    const Eigen::Matrix4d P = cam.projection(s.width, s.height) * cam.X_CW().matrix();
+    double best[4] = {0, 0, 0, 0};
+    Tile extreme[4];
+    for (std::int64_t a = 0; a < config.anchors; ++a) {
+      const auto samples = s.sampler.sample_anchor(seed, static_cast<std::uint64_t>(a));
+      for (int r = 0; r < s.regimes; ++r) {
+        const auto& q = samples[static_cast<std::size_t>(r)];
+        w.kinematics.set_positions(s.coordinates(q));
+        for (const auto& X_BL : w.kinematics.link_poses()) {
+          const Eigen::Vector4d clip = P * (X_WB * X_BL.translation()).homogeneous();
+          const double x = clip.x() / clip.w(), y = clip.y() / clip.w();
+          const double reach[4] = {-x, x, y, -y};
+          for (int k = 0; k < 4; ++k) {
+            if (reach[k] > best[k]) {
+              best[k] = reach[k];
+              char label[64];
+              std::snprintf(label, sizeof label, "%s%s %.2f (a%lld)",
+                            s.cameras > 1 ? (cam.name + " ").c_str() : "", kSides[k], reach[k],
+                            static_cast<long long>(a));
+              extreme[k] = {c, k, c, q, label};
+            }
+          }
+        }
+      }
+    }
+    for (const Tile& t : extreme)
+      tiles.push_back(t);
+  }
+  write_sheet(s, config, &w, tiles, s.cameras, 4, scale, png);
 }
 
 }  // namespace ropes::sim

@@ -84,6 +84,8 @@ echo "repair: missing marker, truncated file, stale temporaries, foreign shard: 
 # 3. the preview
 "$gen" --config "$configs/2c.json" --preview "$work/p.png" --seed 1 --anchor 3 >/dev/null
 [ "$(head -c 8 "$work/p.png" | od -An -tx1 | tr -d ' ')" = "89504e470d0a1a0a" ] || fail "no PNG"
+"$gen" --config "$configs/1c.json" --preview-extremes "$work/e.png" --seed 1 --anchors 50 >/dev/null
+[ "$(head -c 8 "$work/e.png" | od -An -tx1 | tr -d ' ')" = "89504e470d0a1a0a" ] || fail "no PNG"
 
 # 4. bad input: one clear line, non-zero exit, nothing overwritten
 expect_error() {  # expected-text command...

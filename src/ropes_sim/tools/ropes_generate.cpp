@@ -17,6 +17,7 @@ namespace fs = std::filesystem;
 
 const char* const kUsage = R"(usage: ropes-generate --config C --out DIR --seed S [options]
        ropes-generate --config C --preview PNG [--seed S] [--anchor A]
+       ropes-generate --config C --preview-extremes PNG [--seed S] [--anchors N]
 
 Renders the dataset of config C (a file, or the name of an installed config such as 1c or
 2c) into DIR: manifest.json + shards/*.npy. Identical bytes for any --threads and --shard;
@@ -30,6 +31,8 @@ options:
                          finds every shard present writes manifest.json
   --preview PNG          write a contact sheet of one anchor instead of a dataset
   --anchor A             the anchor of --preview (default 0)
+  --preview-extremes PNG write, per camera, the samples of all anchors whose links reach
+                         furthest left, right, up and down: the rig's framing check
   --scale S              --preview tile scale, an integer 1..16 (default 2)
 )";
 
@@ -66,7 +69,7 @@ fs::path find_config(const std::string& value) {
 }
 
 int run(int argc, char** argv) {
-  std::string config_arg, out, preview;
+  std::string config_arg, out, preview, extremes;
   std::uint64_t seed = 0, anchor = 0;
   bool have_seed = false;
   std::int64_t anchors = -1, per_shard = -1;
@@ -110,6 +113,8 @@ int run(int argc, char** argv) {
       options.shard_count = n;
     } else if (flag == "--preview") {
       preview = value;
+    } else if (flag == "--preview-extremes") {
+      extremes = value;
     } else if (flag == "--anchor") {
       anchor = parse_number<std::uint64_t>(flag, value, 0, UINT64_MAX);
     } else if (flag == "--scale") {
@@ -126,6 +131,16 @@ int run(int argc, char** argv) {
   if (per_shard > 0)
     config.anchors_per_shard = per_shard;
 
+  if (!extremes.empty()) {
+    if (!out.empty() || options.threads != 1 || options.shard_count != 1 || !preview.empty())
+      throw UsageError(
+          "--preview-extremes writes one PNG: --out, --threads, --shard and "
+          "--preview do not apply");
+    ropes::sim::write_extremes_preview(config, seed, extremes, scale);
+    std::cout << "ropes-generate: wrote " << extremes << " (the extremes of " << config.anchors
+              << " anchors, seed " << seed << ")\n";
+    return 0;
+  }
   if (!preview.empty()) {
     if (!out.empty() || options.threads != 1 || options.shard_count != 1)
       throw UsageError("--preview writes one PNG: --out, --threads and --shard do not apply");

@@ -72,4 +72,12 @@ GenerateResult generate_dataset(const DatasetConfig& config, const GenerateOptio
 void write_preview(const DatasetConfig& config, std::uint64_t seed, std::uint64_t anchor,
                    const std::filesystem::path& png, int scale = 2);
 
+/// The framing check of a rig: over every sample of the config's anchors (all regimes),
+/// finds for each camera the samples whose link origins reach furthest left, right, up and
+/// down in the image, and writes them as a PNG contact sheet (one row per camera), each
+/// tile labelled with the side, how far it reaches (1 is the image's edge) and the anchor.
+/// Cost: one FK per sample (about 5 us), then 4 renders per camera.
+void write_extremes_preview(const DatasetConfig& config, std::uint64_t seed,
+                            const std::filesystem::path& png, int scale = 2);
+
 }  // namespace ropes::sim
