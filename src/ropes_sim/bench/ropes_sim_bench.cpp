@@ -16,6 +16,7 @@
 #include <thread>
 #include <vector>
 
+#include "../test/panda_dh.hpp"
 #include "ropes_sim/dataset_generator.hpp"
 #include "ropes_sim/intervention_sampler.hpp"
 #include "ropes_sim/kinematics.hpp"
@@ -93,30 +94,11 @@ double render_rate(const fs::path& urdf, int threads, int images_per_thread) {
   return threads * images_per_thread / slowest;
 }
 
-// the peer of Simbody's FK: the Panda's modified-DH chain (Craig), 8 frames
-struct DhRow {
-  double a, d, alpha;
-};
-constexpr DhRow kPandaDh[8] = {{0, 0.333, 0},
-                               {0, 0, -M_PI / 2},
-                               {0, 0.316, M_PI / 2},
-                               {0.0825, 0, M_PI / 2},
-                               {-0.0825, 0.384, -M_PI / 2},
-                               {0, 0, M_PI / 2},
-                               {0.088, 0, M_PI / 2},
-                               {0, 0.107, 0}};
-
+// the peer of Simbody's FK: the Panda's modified-DH chain (Craig), 8 frames, the tests' witness
 double dh_chain(const std::vector<double>& q) {
-  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
   double sink = 0;
-  for (int i = 0; i < 8; ++i) {
-    const double theta = i < 7 ? q[static_cast<std::size_t>(i)] : 0.0;
-    X = X * Eigen::AngleAxisd(kPandaDh[i].alpha, Eigen::Vector3d::UnitX()) *
-        Eigen::Translation3d(kPandaDh[i].a, 0, 0) *
-        Eigen::AngleAxisd(theta, Eigen::Vector3d::UnitZ()) *
-        Eigen::Translation3d(0, 0, kPandaDh[i].d);
+  for (const auto& X : ropes::sim::witness::dh_frames(q))
     sink += X.translation().x();
-  }
   return sink;
 }
 

@@ -5,6 +5,7 @@
 #include <fstream>
 #include <set>
 
+#include "json_config.hpp"
 #include "ropes_sim/intervention_sampler.hpp"
 
 namespace ropes::sim {
@@ -102,17 +103,7 @@ Json camera_json(const Camera& c) {
 
 DatasetConfig DatasetConfig::load(const std::filesystem::path& path) {
   const std::string file = path.string();
-  std::ifstream in(path);
-  if (!in)
-    fail(file, "cannot open the dataset config");
-  Json config;
-  try {
-    config = Json::parse(in);
-  } catch (const Json::exception& e) {
-    fail(file, std::string("not JSON: ") + e.what());
-  }
-  if (!config.is_object())
-    fail(file, "the config is not a JSON object");
+  const Json config = detail::read_config_object(path, "dataset config");
   only_fields(config,
               {"name", "source", "notes", "distribution", "robot", "rig", "image", "anchors",
                "anchors_per_shard"},

@@ -5,6 +5,8 @@
 #include <fstream>
 #include <set>
 
+#include "json_config.hpp"
+
 namespace ropes::sim {
 
 namespace {
@@ -41,17 +43,7 @@ TruncatedNormal truncated_normal(const Json& v, const std::string& file, const s
 
 InterventionSampler InterventionSampler::load(const std::filesystem::path& path) {
   const std::string file = path.string();
-  std::ifstream in(path);
-  if (!in)
-    fail(file, "cannot open the distribution config");
-  Json config;
-  try {
-    config = Json::parse(in);
-  } catch (const Json::exception& e) {
-    fail(file, std::string("not JSON: ") + e.what());
-  }
-  if (!config.is_object())
-    fail(file, "the config is not a JSON object");
+  const Json config = detail::read_config_object(path, "distribution config");
   for (const char* key : {"name", "joints", "observational", "interventions"}) {
     if (!config.contains(key))
       fail(file, std::string("lacks the field '") + key + "'");

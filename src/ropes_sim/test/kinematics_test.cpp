@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <string>
 
+#include "panda_dh.hpp"
 #include "ropes_nn/philox.hpp"
 
 namespace ropes::sim {
@@ -15,34 +16,8 @@ const std::filesystem::path kPandaUrdf = std::filesystem::path(ROPES_SIM_URDF_DI
 const std::filesystem::path kPandaGym =
     std::filesystem::path(ROPES_SHARED_ASSETS) / "franka_panda" / "panda.urdf";
 
-// The witness: the Panda's forward kinematics from Craig's modified DH table, written here
-// independently of the URDF and of Simbody. Frame i = frame i-1 * RotX(alpha) TransX(a)
-// RotZ(theta_i) TransZ(d); row 7 is the flange (panda_link8).
-struct DhRow {
-  double a, d, alpha;
-};
-constexpr DhRow kPandaDh[8] = {{0, 0.333, 0},
-                               {0, 0, -M_PI / 2},
-                               {0, 0.316, M_PI / 2},
-                               {0.0825, 0, M_PI / 2},
-                               {-0.0825, 0.384, -M_PI / 2},
-                               {0, 0, M_PI / 2},
-                               {0.088, 0, M_PI / 2},
-                               {0, 0.107, 0}};
-
-std::vector<Eigen::Isometry3d> dh_frames(const std::vector<double>& q) {
-  std::vector<Eigen::Isometry3d> frames;
-  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
-  for (int i = 0; i < 8; ++i) {
-    const double theta = i < 7 ? q[static_cast<std::size_t>(i)] : 0.0;
-    X = X * Eigen::AngleAxisd(kPandaDh[i].alpha, Eigen::Vector3d::UnitX()) *
-        Eigen::Translation3d(kPandaDh[i].a, 0, 0) *
-        Eigen::AngleAxisd(theta, Eigen::Vector3d::UnitZ()) *
-        Eigen::Translation3d(0, 0, kPandaDh[i].d);
-    frames.push_back(X);
-  }
-  return frames;
-}
+// the witness: test/panda_dh.hpp
+using witness::dh_frames;
 
 std::vector<double> random_configuration(const RobotModel& model, nn::PhiloxStream& rng) {
   std::vector<double> q;
