@@ -489,20 +489,25 @@ void write_sheet(const Setup& s, const DatasetConfig& config, Worker* w,
   nn::write_file_atomically(png, bytes.data(), bytes.size());
 }
 
-void check_scale(int scale) {
-  if (scale < 1 || scale > 16)
-    throw std::invalid_argument("preview scale is " + std::to_string(scale) + "; expected 1..16");
-}
+// what a preview needs: the config loaded, one renderer, the cameras checked
+struct Preview {
+  Setup s;
+  std::shared_ptr<const Scene> scene;
+  Worker w;
+  Preview(const DatasetConfig& config, std::uint64_t seed, int scale)
+      : s(config), scene(Scene::build(s.model)), w(s.model, scene, s.width, s.height) {
+    if (scale < 1 || scale > 16)
+      throw std::invalid_argument("preview scale is " + std::to_string(scale) + "; expected 1..16");
+    check_cameras_see_robot(s, config, seed, &w);
+  }
+};
 
 }  // namespace
 
 void write_preview(const DatasetConfig& config, std::uint64_t seed, std::uint64_t anchor,
                    const std::filesystem::path& png, int scale) {
-  check_scale(scale);
-  const Setup s(config);
-  const auto scene = Scene::build(s.model);
-  Worker w(s.model, scene, s.width, s.height);
-  check_cameras_see_robot(s, config, seed, &w);
+  Preview p(config, seed, scale);
+  const Setup& s = p.s;
   const auto samples = s.sampler.sample_anchor(seed, anchor);
   std::vector<Tile> tiles;
   for (int c = 0; c < s.cameras; ++c) {
@@ -516,17 +521,14 @@ void write_preview(const DatasetConfig& config, std::uint64_t seed, std::uint64_
       tiles.push_back({c, r, c, samples[static_cast<std::size_t>(r)], text});
     }
   }
-  write_sheet(s, config, &w, tiles, s.cameras, s.regimes, scale, png);
+  write_sheet(s, config, &p.w, tiles, s.cameras, s.regimes, scale, png);
 }
 
 void write_extremes_preview(const DatasetConfig& config, std::uint64_t seed,
                             const std::filesystem::path& png, int scale) {
-  check_scale(scale);
-  const Setup s(config);
-  const auto scene = Scene::build(s.model);
-  Worker w(s.model, scene, s.width, s.height);
-  check_cameras_see_robot(s, config, seed, &w);
-  const Eigen::Isometry3d X_WB = scene->X_WB();
+  Preview p(config, seed, scale);
+  const Setup& s = p.s;
+  const Eigen::Isometry3d X_WB = p.scene->X_WB();
   // per camera, the samples whose link origins reach furthest left, right, up and down
   const char* const kSides[4] = {"left", "right", "top", "bottom"};
   std::vector<Tile> tiles;
@@ -539,8 +541,8 @@ void write_extremes_preview(const DatasetConfig& config, std::uint64_t seed,
       const auto samples = s.sampler.sample_anchor(seed, static_cast<std::uint64_t>(a));
       for (int r = 0; r < s.regimes; ++r) {
         const auto& q = samples[static_cast<std::size_t>(r)];
-        w.kinematics.set_positions(s.coordinates(q));
-        for (const auto& X_BL : w.kinematics.link_poses()) {
+        p.w.kinematics.set_positions(s.coordinates(q));
+        for (const auto& X_BL : p.w.kinematics.link_poses()) {
           const Eigen::Vector4d clip = P * (X_WB * X_BL.translation()).homogeneous();
           const double x = clip.x() / clip.w(), y = clip.y() / clip.w();
           const double reach[4] = {-x, x, y, -y};
@@ -560,7 +562,7 @@ void write_extremes_preview(const DatasetConfig& config, std::uint64_t seed,
     for (const Tile& t : extreme)
       tiles.push_back(t);
   }
-  write_sheet(s, config, &w, tiles, s.cameras, 4, scale, png);
+  write_sheet(s, config, &p.w, tiles, s.cameras, 4, scale, png);
 }
 
 }  // namespace ropes::sim
