@@ -22,6 +22,9 @@ std::filesystem::path resolve_mesh_path(const std::string& filename,
     // package://PKG/rest: PKG may be the URDF's own directory (or a parent) by name, or, as
     // many exported robots write it, the first folder below the URDF's directory
     const fs::path rest = filename.substr(kPackage.size());
+    if (rest.empty() || rest.is_absolute())
+      throw ModelError(source + ": mesh '" + filename +
+                       "' names no file; expected package://PACKAGE/path/to/mesh");
     const fs::path base = urdf_dir.empty() ? fs::path(".") : urdf_dir;
     const fs::path pkg = *rest.begin();
     const fs::path below = rest.lexically_relative(pkg);
