@@ -186,6 +186,27 @@ TEST(DatasetGenerator, AShardOfAnotherDatasetCopiedInIsRedoneNotMixed) {
   EXPECT_EQ(files(dir / "merged"), files(dir / "ref"));
 }
 
+TEST(DatasetGenerator, ShardsTooManyOrTooLargeAreConfigErrors) {
+  const fs::path dir = temp_dir("sizes");
+  auto config = DatasetConfig::load(write_config(dir));
+  const auto message = [&] {
+    try {
+      generate_dataset(config, options(dir / "d", 1));
+    } catch (const ConfigError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  config.anchors_per_shard = 1 << 20;  // 13 x 2 x 40 x 32 bytes each: 32 GiB a shard
+  EXPECT_NE(message().find("anchors_per_shard 1048576 makes image shards of 32.5"),
+            std::string::npos)
+      << message();
+  config.anchors = 1LL << 40;
+  config.anchors_per_shard = 1;
+  EXPECT_NE(message().find("shards; expected at most 16777216"), std::string::npos) << message();
+  EXPECT_FALSE(fs::exists(dir / "d"));
+}
+
 TEST(DatasetGenerator, AJointTheRobotDoesNotHaveIsNamed) {
   const fs::path dir = temp_dir("joint");
   std::ifstream in(fs::path(ROPES_SIM_DISTRIBUTIONS_DIR) / "1c_independent.json");

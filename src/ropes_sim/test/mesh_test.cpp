@@ -65,6 +65,15 @@ TEST(Mesh, MissingMaterialLibraryIsAWarningNotAnError) {
   ASSERT_EQ(mesh.warnings.size(), 2u);
   EXPECT_NE(mesh.warnings[0].find("gone.mtl"), std::string::npos);
   EXPECT_EQ(mesh.materials[0].diffuse, Eigen::Vector3f::Ones());
+  // a texture that is not there: the material keeps its colour, without a texture
+  write(dir / "t.mtl", "newmtl grey\nKd 0.5 0.5 0.5\nmap_Kd gone.png\n");
+  write(dir / "t.obj", "mtllib t.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl grey\nf 1 2 3\n");
+  const Mesh textured = load_mesh(dir / "t.obj");
+  ASSERT_EQ(textured.warnings.size(), 1u);
+  EXPECT_NE(textured.warnings[0].find("t.mtl:3: texture"), std::string::npos)
+      << textured.warnings[0];
+  EXPECT_FALSE(textured.materials[0].texture);
+  EXPECT_FLOAT_EQ(textured.materials[0].diffuse.x(), 0.5f);
 }
 
 TEST(Mesh, BadObjFilesNameTheFileAndLine) {

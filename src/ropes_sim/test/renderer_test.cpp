@@ -143,6 +143,17 @@ TEST(Renderer, ACameraLookingAwaySeesNoRobot) {
   away.yaw_deg = 45;  // looking away from the robot
   EXPECT_EQ(r.robot_pixels(X_BL, away), 0);
   EXPECT_THROW(r.render({}, away), std::invalid_argument);
+  // its context is current on this thread: another thread is refused, not undefined behaviour
+  std::string refused;
+  std::thread([&] {
+    try {
+      r.render(X_BL, away);
+    } catch (const std::logic_error& e) {
+      refused = e.what();
+    }
+  }).join();
+  EXPECT_NE(refused.find("Renderer::render: called on another thread"), std::string::npos)
+      << refused;
   EXPECT_THROW(Renderer(f.scene, 4, 64), std::invalid_argument);
 }
 
