@@ -17,6 +17,7 @@
 #include <thread>
 #include <vector>
 
+#include "npy_arrays.hpp"
 #include "ropes_nn/sha256.hpp"
 
 namespace ropes::nn {
@@ -33,16 +34,7 @@ const std::vector<ColumnSpec> kColumns = {
 const std::vector<std::int64_t> kShardRows = {5, 3, 4};  // 12 rows; shards start at 0, 5, 8
 constexpr std::int64_t kRows = 12;
 
-template <typename T>
-NpyArray make_array(DType dtype, std::vector<std::int64_t> shape, const std::vector<T>& v) {
-  NpyArray a;
-  a.dtype = dtype;
-  a.shape = std::move(shape);
-  a.data.resize(v.size() * sizeof(T));
-  if (!v.empty())
-    std::memcpy(a.data.data(), v.data(), a.data.size());
-  return a;
-}
+using test::make_array;
 
 // the arrays of global rows [first, first + rows), one per column of kColumns; every value is
 // exact in float64, so sums compare exactly with numpy's

@@ -11,6 +11,7 @@
 #include <iterator>
 #include <string>
 
+#include "npy_arrays.hpp"
 #include "ropes_nn/philox.hpp"
 
 namespace ropes::nn {
@@ -26,23 +27,8 @@ std::vector<std::uint8_t> file_bytes(const fs::path& path) {
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
-template <typename T>
-std::vector<T> values(const NpyArray& a) {
-  std::vector<T> v(a.data.size() / sizeof(T));
-  std::memcpy(v.data(), a.data.data(), a.data.size());
-  return v;
-}
-
-template <typename T>
-NpyArray make(DType dtype, std::vector<std::int64_t> shape, const std::vector<T>& v) {
-  NpyArray a;
-  a.dtype = dtype;
-  a.shape = std::move(shape);
-  a.data.resize(v.size() * sizeof(T));
-  if (!v.empty())
-    std::memcpy(a.data.data(), v.data(), a.data.size());
-  return a;
-}
+using test::make_array;
+using test::values;
 
 // one array per fixture, built here from the same formulas the script uses
 std::vector<std::pair<std::string, NpyArray>> expected_arrays() {
@@ -50,12 +36,13 @@ std::vector<std::pair<std::string, NpyArray>> expected_arrays() {
   for (int i = 0; i < 24; ++i)
     f32[i] = (static_cast<float>(i) - 11.5f) / 4.0f;
   return {
-      {"u8_2x3.npy", make<std::uint8_t>(DType::kU8, {2, 3}, {0, 40, 80, 120, 160, 200})},
-      {"i32_4.npy", make<std::int32_t>(DType::kI32, {4}, {-2, -1, 0, 2147483647})},
-      {"i64_2x2.npy", make<std::int64_t>(DType::kI64, {2, 2}, {-(1ll << 40), 1, 2, 1ll << 62})},
-      {"f32_2x3x4.npy", make<float>(DType::kF32, {2, 3, 4}, f32)},
-      {"f64_scalar.npy", make<double>(DType::kF64, {}, {M_PI})},
-      {"f32_0.npy", make<float>(DType::kF32, {0}, {})},
+      {"u8_2x3.npy", make_array<std::uint8_t>(DType::kU8, {2, 3}, {0, 40, 80, 120, 160, 200})},
+      {"i32_4.npy", make_array<std::int32_t>(DType::kI32, {4}, {-2, -1, 0, 2147483647})},
+      {"i64_2x2.npy",
+       make_array<std::int64_t>(DType::kI64, {2, 2}, {-(1ll << 40), 1, 2, 1ll << 62})},
+      {"f32_2x3x4.npy", make_array<float>(DType::kF32, {2, 3, 4}, f32)},
+      {"f64_scalar.npy", make_array<double>(DType::kF64, {}, {M_PI})},
+      {"f32_0.npy", make_array<float>(DType::kF32, {0}, {})},
   };
 }
 
@@ -183,7 +170,7 @@ TEST(Npy, ReadNpyNamesAMissingFile) {
 }
 
 TEST(Npy, SerializeRefusesDataThatDoesNotMatchTheShape) {
-  NpyArray a = make<float>(DType::kF32, {2, 2}, {1, 2, 3});
+  NpyArray a = make_array<float>(DType::kF32, {2, 2}, {1, 2, 3});
   EXPECT_THROW(serialize_npy(a), std::invalid_argument);
 }
 

@@ -17,6 +17,7 @@
 #include <mutex>
 #include <thread>
 
+#include "json_config.hpp"
 #include "ropes_nn/dataset.hpp"
 #include "ropes_nn/sha256.hpp"
 #include "ropes_sim/intervention_sampler.hpp"
@@ -325,7 +326,7 @@ void check_cameras_see_robot(const Setup& s, const DatasetConfig& config, std::u
 // the dataset's metadata: everything its bytes depend on, the GL implementation included
 std::string metadata_of(const Setup& s, const DatasetConfig& config, std::uint64_t seed,
                         const std::string& gl) {
-  const Json distribution = read_json(config.distribution);
+  const Json distribution = detail::read_config_object(config.distribution, "distribution config");
   Json cameras = Json::array();
   for (const Camera& c : config.rig.cameras)
     cameras.push_back(c.name);
