@@ -144,11 +144,10 @@ Buffer conv_input_grad(const float* gy, const float* w, const ConvGeometry& g) {
 // per-chunk partial sums over the batch, added in chunk order (deterministic per thread count)
 Buffer conv_weight_grad(const float* x, const float* gy, const ConvGeometry& g) {
   count_flops(g);
-  const int chunks =
-      static_cast<int>(std::max<std::int64_t>(1, std::min<std::int64_t>(num_threads(), g.n)));
+  const int chunks = parallel_chunks(g.n);
   const std::size_t w_size = static_cast<std::size_t>(g.o * g.patch());
   std::vector<Buffer> partial(static_cast<std::size_t>(chunks), Buffer(w_size, 0.0f));
-  parallel_for(g.n, [&](int chunk, std::int64_t begin, std::int64_t end) {
+  parallel_for(g.n, chunks, [&](int chunk, std::int64_t begin, std::int64_t end) {
     Buffer col(static_cast<std::size_t>(g.patch() * g.pixels()));
     Eigen::Map<RowMajor> dw(partial[static_cast<std::size_t>(chunk)].data(), g.o, g.patch());
     for (std::int64_t i = begin; i < end; ++i) {

@@ -71,12 +71,11 @@ class GroupNormNode final : public Node {
     const float* gp = gy.data();
     const float* gamma = inputs[1].data();
     Buffer dx(static_cast<std::size_t>(x.numel()));
-    const int chunks =
-        static_cast<int>(std::max<std::int64_t>(1, std::min<std::int64_t>(num_threads(), l_.n)));
+    const int chunks = parallel_chunks(l_.n);
     std::vector<std::vector<double>> dgamma(static_cast<std::size_t>(chunks),
                                             std::vector<double>(static_cast<std::size_t>(l_.c)));
     std::vector<std::vector<double>> dbeta = dgamma;
-    parallel_for(l_.n, [&](int chunk, std::int64_t begin, std::int64_t end) {
+    parallel_for(l_.n, chunks, [&](int chunk, std::int64_t begin, std::int64_t end) {
       auto& dg = dgamma[static_cast<std::size_t>(chunk)];
       auto& db = dbeta[static_cast<std::size_t>(chunk)];
       for (std::int64_t i = begin; i < end; ++i) {

@@ -4,11 +4,15 @@
 #include <Eigen/Core>
 
 #include <algorithm>
+#include <atomic>
 #include <cstdlib>
 #include <exception>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <thread>
+
+#include "ropes_nn/demand.hpp"
 
 namespace ropes::nn {
 
@@ -22,12 +26,16 @@ int default_threads() {
   return std::max(1u, std::thread::hardware_concurrency());
 }
 
-int& thread_setting() {
-  static int threads = [] {
+// serialises the writes of Eigen's own (plain int) thread setting
+std::mutex g_eigen_mutex;
+
+std::atomic<int>& thread_setting() {
+  static std::atomic<int> threads{[] {
     const int n = default_threads();
+    const std::lock_guard<std::mutex> lock(g_eigen_mutex);
     Eigen::setNbThreads(n);
     return n;
-  }();
+  }()};
   return threads;
 }
 }  // namespace
@@ -36,19 +44,27 @@ void set_num_threads(int n) {
   if (n < 1) {
     throw std::invalid_argument("set_num_threads: " + std::to_string(n) + "; expected >= 1");
   }
-  thread_setting() = n;
+  std::atomic<int>& setting = thread_setting();
+  const std::lock_guard<std::mutex> lock(g_eigen_mutex);
+  setting.store(n);
   Eigen::setNbThreads(n);
 }
 
 int num_threads() {
-  return thread_setting();
+  return thread_setting().load();
 }
 
-void parallel_for(std::int64_t n,
+int parallel_chunks(std::int64_t n) {
+  return static_cast<int>(std::max<std::int64_t>(1, std::min<std::int64_t>(num_threads(), n)));
+}
+
+void parallel_for(std::int64_t n, int chunks,
                   const std::function<void(int, std::int64_t, std::int64_t)>& body) {
   if (n <= 0)
     return;
-  const int chunks = static_cast<int>(std::min<std::int64_t>(num_threads(), n));
+  ROPES_DEMAND(chunks >= 1 && chunks <= n, "parallel_for: " + std::to_string(chunks) +
+                                               " chunks for " + std::to_string(n) +
+                                               " items; expected 1..n");
   if (chunks == 1) {
     body(0, 0, n);
     return;
@@ -67,6 +83,13 @@ void parallel_for(std::int64_t n,
   }
   if (failure)
     std::rethrow_exception(failure);
+}
+
+void parallel_for(std::int64_t n,
+                  const std::function<void(int, std::int64_t, std::int64_t)>& body) {
+  if (n <= 0)
+    return;
+  parallel_for(n, parallel_chunks(n), body);
 }
 
 }  // namespace ropes::nn

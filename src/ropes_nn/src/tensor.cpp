@@ -332,6 +332,10 @@ std::vector<Tensor> grad_impl(const std::vector<Tensor>& outputs, const std::vec
       continue;
     const Tensor g = found->second;
     const std::vector<Tensor> input_grads = node->backward(g);
+    ROPES_DEMAND(input_grads.size() == node->inputs.size(),
+                 std::string(node->name()) + "::backward returned " +
+                     std::to_string(input_grads.size()) + " gradients for " +
+                     std::to_string(node->inputs.size()) + " inputs");
     for (std::size_t i = 0; i < node->inputs.size(); ++i) {
       const Tensor& in = node->inputs[i];
       if (!in.requires_grad() || !input_grads[i].defined() || !needed.count(in.id()))

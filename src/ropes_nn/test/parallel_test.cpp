@@ -4,8 +4,10 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
 #include <stdexcept>
+#include <thread>
 #include <vector>
 
 #include "ropes_nn/layers.hpp"
@@ -16,8 +18,7 @@ namespace ropes::nn {
 namespace {
 
 // loss and every parameter gradient of a small conv net on a batch of 8
-std::vector<float> loss_and_gradients(int threads) {
-  set_num_threads(threads);
+std::vector<float> loss_and_gradients_at_current_threads() {
   Sequential net;
   net.add(std::make_shared<Conv2d>(2, 8, 3, 2));
   net.add(std::make_shared<ResBlockGN>(8, 4));
@@ -35,6 +36,11 @@ std::vector<float> loss_and_gradients(int threads) {
     out.insert(out.end(), v.begin(), v.end());
   }
   return out;
+}
+
+std::vector<float> loss_and_gradients(int threads) {
+  set_num_threads(threads);
+  return loss_and_gradients_at_current_threads();
 }
 
 TEST(Parallel, SameThreadCountGivesBitIdenticalResults) {
@@ -78,6 +84,31 @@ TEST(Parallel, ParallelForCoversTheRangeInFixedChunks) {
                                 throw std::runtime_error("chunk 1 failed");
                             }),
                std::runtime_error);
+  set_num_threads(saved);
+}
+
+// set_num_threads from another thread while kernels run: each kernel keeps the chunk count
+// it sized its partial sums with, so results stay those of some thread count (before, a
+// count that grew between sizing and splitting wrote past the buffers)
+TEST(Parallel, SetNumThreadsWhileKernelsRunIsSafe) {
+  const int saved = num_threads();
+  const std::vector<std::vector<float>> reference = {loss_and_gradients(1), loss_and_gradients(2),
+                                                     loss_and_gradients(3)};
+  std::atomic<bool> done{false};
+  std::thread changer([&] {
+    for (int i = 0; !done.load(); ++i)
+      set_num_threads(1 + i % 3);
+  });
+  for (int run = 0; run < 40; ++run) {
+    const std::vector<float> r = loss_and_gradients_at_current_threads();
+    double scale = 0;
+    for (float v : reference[0])
+      scale = std::max(scale, static_cast<double>(std::abs(v)));
+    for (std::size_t i = 0; i < r.size(); ++i)
+      ASSERT_NEAR(r[i], reference[0][i], 1e-4 * scale) << "run " << run << ", value " << i;
+  }
+  done = true;
+  changer.join();
   set_num_threads(saved);
 }
 

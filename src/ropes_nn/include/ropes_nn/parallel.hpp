@@ -14,12 +14,28 @@
 namespace ropes::nn {
 
 /// Sets the thread count (>= 1); also Eigen's. Default: the ROPES_NUM_THREADS environment
-/// variable if set, else the number of hardware threads. Throws std::invalid_argument for n < 1.
+/// variable if set, else the number of hardware threads. Throws std::invalid_argument for
+/// n < 1. Safe to call while other threads run kernels: they see the old or the new count
+/// (an atomic), never a torn value, and a kernel that has sized its per-chunk buffers keeps
+/// its own chunk count (see parallel_chunks).
 void set_num_threads(int n);
 int num_threads();
 
-/// Calls body(chunk, begin, end) for num_threads() (or fewer, if n is smaller) contiguous
-/// chunks covering [0, n), in parallel. Chunk bounds depend only on n and the thread count.
+/// The number of chunks parallel_for(n, body) splits [0, n) into at the current thread
+/// count: min(num_threads(), n), and at least 1. A kernel that keeps one partial buffer per
+/// chunk reads this once, sizes its buffers with it and passes the same count to
+/// parallel_for(n, chunks, body), so a concurrent set_num_threads cannot make a chunk index
+/// run past the buffers.
+int parallel_chunks(std::int64_t n);
+
+/// Calls body(chunk, begin, end) for chunk = 0 .. chunks - 1, contiguous pieces covering
+/// [0, n) (chunk c gets [n c / chunks, n (c + 1) / chunks)), in parallel. Bounds depend only
+/// on n and chunks. n <= 0 does nothing. chunks must be in [1, n] (ROPES_DEMAND).
+/// An exception thrown by a body reaches the caller (the first one, after every chunk ends).
+void parallel_for(std::int64_t n, int chunks,
+                  const std::function<void(int chunk, std::int64_t begin, std::int64_t end)>& body);
+
+/// parallel_for(n, parallel_chunks(n), body).
 void parallel_for(std::int64_t n,
                   const std::function<void(int chunk, std::int64_t begin, std::int64_t end)>& body);
 

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "ropes_nn/buffer.hpp"
+#include "ropes_nn/demand.hpp"
 
 namespace ropes::nn {
 
@@ -36,7 +37,14 @@ class Shape {
   explicit Shape(const std::vector<std::int64_t>& dims);
 
   int rank() const { return rank_; }
-  std::int64_t operator[](int axis) const { return dims_[static_cast<std::size_t>(axis)]; }
+  /// The size of dimension `axis`, 0 <= axis < rank() (ROPES_DEMAND: an axis outside the
+  /// rank is a bug in the caller's shape logic, never read past the dimensions).
+  std::int64_t operator[](int axis) const {
+    ROPES_DEMAND(axis >= 0 && axis < rank_, "Shape" + str() + "[" + std::to_string(axis) +
+                                                "]: axis outside the rank " +
+                                                std::to_string(rank_));
+    return dims_[static_cast<std::size_t>(axis)];
+  }
   /// Product of the dimensions (1 for a scalar).
   std::int64_t numel() const;
   std::vector<std::int64_t> dims() const { return {dims_.begin(), dims_.begin() + rank_}; }
