@@ -118,13 +118,13 @@ GradCheckResult check_module_gradients(Module& module, const Tensor& x,
     wrt.push_back(p);
     names.push_back(name);
   }
-  const Tensor y = module.forward(wrt[0]);
+  const Tensor y = module(wrt[0]);
   const std::vector<float> w = projection_weights(y.shape(), options.seed);
   const std::vector<Tensor> analytic =
       grad({y}, wrt, {Tensor(y.shape(), w)}, false, /*allow_unused=*/true);
 
   return compare_with_finite_differences(
-      wrt, names, analytic, [&] { return project(module.forward(wrt[0]), w); }, options);
+      wrt, names, analytic, [&] { return project(module(wrt[0]), w); }, options);
 }
 
 }  // namespace ropes::nn

@@ -95,8 +95,8 @@ ResBlockGN::ResBlockGN(std::int64_t channels, int groups) {
 }
 
 Tensor ResBlockGN::forward(const Tensor& x) {
-  const Tensor h = conv1_->forward(relu(norm1_->forward(x)));
-  return add(x, conv2_->forward(relu(norm2_->forward(h))));
+  const Tensor h = (*conv1_)(relu((*norm1_)(x)));
+  return add(x, (*conv2_)(relu((*norm2_)(h))));
 }
 
 }  // namespace ropes::nn

@@ -35,8 +35,16 @@ Tensor Module::register_parameter(const std::string& name, const Shape& shape,
                                 "' is lecun_normal but has fan_in " + std::to_string(fan_in));
   }
   Tensor t = Tensor::full(shape, init == "ones" ? 1.0f : 0.0f, true);
-  parameters_.push_back({name, t, init, fan_in});
+  parameters_.push_back({name, t, init, fan_in, false});
+  verified_ = false;
   return t;
+}
+
+void Module::add_child(const std::string& name, std::shared_ptr<Module> module) {
+  if (!module)
+    throw std::invalid_argument("Module::register_module: '" + name + "' is null");
+  children_.emplace_back(name, std::move(module));
+  verified_ = false;
 }
 
 std::vector<std::pair<std::string, Tensor>> Module::named_parameters() const {
@@ -66,28 +74,115 @@ std::int64_t Module::parameter_count() const {
 }
 
 void Module::initialize(std::uint64_t seed) {
-  // own parameters, then children under their prefixes (names must match named_parameters)
+  initialize_tree(seed, "", "");
+}
+
+void Module::initialize(std::uint64_t seed, const std::string& scope) {
+  initialize_tree(seed, scope, "");
+}
+
+// own parameters, then children under their prefixes (names as named_parameters gives them)
+void Module::initialize_tree(std::uint64_t seed, const std::string& scope,
+                             const std::string& prefix) {
+  for (Parameter& p : parameters_) {
+    const std::string full = prefix + p.name;
+    float* v = p.value.mutable_data();
+    const std::int64_t n = p.value.numel();
+    if (p.init == "lecun_normal") {
+      PhiloxStream rng(seed, fnv1a64(scope.empty() ? full : scope + "/" + full));
+      const double scale = std::sqrt(1.0 / static_cast<double>(p.fan_in)) / kTruncatedStd;
+      for (std::int64_t i = 0; i < n; ++i)
+        v[i] = static_cast<float>(scale * rng.truncated_normal(-2.0, 2.0));
+    } else {
+      std::fill(v, v + n, p.init == "ones" ? 1.0f : 0.0f);
+    }
+    p.initialized = true;
+  }
+  for (auto& [name, child] : children_)
+    child->initialize_tree(seed, scope, prefix + name + ".");
+}
+
+bool Module::mark(const std::string& name) {
+  for (Parameter& p : parameters_) {
+    if (p.name == name) {
+      p.initialized = true;
+      return true;
+    }
+  }
+  for (auto& [child_name, child] : children_) {
+    if (name.size() > child_name.size() && name.compare(0, child_name.size(), child_name) == 0 &&
+        name[child_name.size()] == '.' && child->mark(name.substr(child_name.size() + 1))) {
+      return true;
+    }
+  }
+  return false;
+}
+
+void Module::mark_initialized(const std::string& name) {
+  if (!mark(name)) {
+    throw std::invalid_argument("Module::mark_initialized: the module has no parameter '" + name +
+                                "'");
+  }
+}
+
+std::string Module::first_uninitialized(const std::string& prefix) const {
+  for (const Parameter& p : parameters_) {
+    if (!p.initialized)
+      return prefix + p.name;
+  }
+  for (const auto& [name, child] : children_) {
+    std::string found = child->first_uninitialized(prefix + name + ".");
+    if (!found.empty())
+      return found;
+  }
+  return "";
+}
+
+std::vector<std::string> Module::uninitialized_parameters() const {
+  std::vector<std::string> names;
   struct Walker {
-    static void run(Module& m, const std::string& prefix, std::uint64_t seed) {
-      for (Parameter& p : m.parameters_) {
-        const std::string full = prefix + p.name;
-        float* v = p.value.mutable_data();
-        const std::int64_t n = p.value.numel();
-        if (p.init == "lecun_normal") {
-          PhiloxStream rng(seed, fnv1a64(full));
-          const double scale = std::sqrt(1.0 / static_cast<double>(p.fan_in)) / kTruncatedStd;
-          for (std::int64_t i = 0; i < n; ++i) {
-            v[i] = static_cast<float>(scale * rng.truncated_normal(-2.0, 2.0));
-          }
-        } else {
-          std::fill(v, v + n, p.init == "ones" ? 1.0f : 0.0f);
-        }
+    static void run(const Module& m, const std::string& prefix, std::vector<std::string>* out) {
+      for (const Parameter& p : m.parameters_) {
+        if (!p.initialized)
+          out->push_back(prefix + p.name);
       }
-      for (auto& [name, child] : m.children_)
-        run(*child, prefix + name + ".", seed);
+      for (const auto& [name, child] : m.children_)
+        run(*child, prefix + name + ".", out);
     }
   };
-  Walker::run(*this, "", seed);
+  Walker::run(*this, "", &names);
+  return names;
+}
+
+void Module::check_ready(std::size_t inputs) {
+  if (inputs != input_count()) {
+    throw std::invalid_argument("Module: called with " + std::to_string(inputs) +
+                                " input(s); this module takes " + std::to_string(input_count()));
+  }
+  if (verified_)
+    return;
+  const std::string missing = first_uninitialized("");
+  if (!missing.empty()) {
+    throw std::logic_error("Module: parameter '" + missing +
+                           "' was never initialised; call initialize(seed) or load weights "
+                           "(load_module, load_checkpoint) before calling the module");
+  }
+  verified_ = true;
+}
+
+Tensor Module::operator()(const Tensor& x) {
+  check_ready(1);
+  return forward(x);
+}
+
+Tensor Module::operator()(const std::vector<Tensor>& inputs) {
+  check_ready(inputs.size());
+  return forward_inputs(inputs);
+}
+
+MultiInputModule::MultiInputModule(std::size_t inputs) : inputs_(inputs) {
+  if (inputs < 1)
+    throw std::invalid_argument("MultiInputModule: 0 inputs; expected at least 1");
 }
 
 Sequential::Sequential(std::vector<std::shared_ptr<Module>> modules) {
@@ -98,6 +193,11 @@ Sequential::Sequential(std::vector<std::shared_ptr<Module>> modules) {
 Sequential& Sequential::add(std::shared_ptr<Module> module, std::string name) {
   if (!module)
     throw std::invalid_argument("Sequential::add: null module");
+  if (module->input_count() != 1) {
+    throw std::invalid_argument("Sequential::add: the module takes " +
+                                std::to_string(module->input_count()) +
+                                " inputs; a Sequential chains single-input modules");
+  }
   if (name.empty())
     name = std::to_string(modules_.size());
   register_module(name, module);
@@ -108,7 +208,7 @@ Sequential& Sequential::add(std::shared_ptr<Module> module, std::string name) {
 Tensor Sequential::forward(const Tensor& x) {
   Tensor y = x;
   for (auto& m : modules_)
-    y = m->forward(y);
+    y = (*m)(y);
   return y;
 }
 

@@ -281,6 +281,7 @@ std::map<std::string, std::string> load_module(Module& module, const std::filesy
     const NpyArray* a = file.find(pname);
     if (!a->data.empty())
       std::memcpy(t.mutable_data(), a->data.data(), a->data.size());
+    module.mark_initialized(pname);
   }
   return file.metadata;
 }

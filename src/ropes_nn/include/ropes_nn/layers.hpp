@@ -16,6 +16,8 @@ class Conv2d : public Module {
  public:
   Conv2d(std::int64_t in_channels, std::int64_t out_channels, std::int64_t kernel, int stride = 1,
          Padding2d padding = Padding2d::same(), bool bias = true);
+
+ protected:
   Tensor forward(const Tensor& x) override;
 
  private:
@@ -30,6 +32,8 @@ class ConvTranspose2d : public Module {
  public:
   ConvTranspose2d(std::int64_t in_channels, std::int64_t out_channels, std::int64_t kernel,
                   int stride = 1, Padding2d padding = Padding2d::same(), bool bias = true);
+
+ protected:
   Tensor forward(const Tensor& x) override;
 
  private:
@@ -43,8 +47,10 @@ class ConvTranspose2d : public Module {
 class GroupNorm : public Module {
  public:
   explicit GroupNorm(std::int64_t channels, int groups = 0, float eps = 1e-6f);
-  Tensor forward(const Tensor& x) override;
   int groups() const { return groups_; }
+
+ protected:
+  Tensor forward(const Tensor& x) override;
 
  private:
   int groups_;
@@ -56,6 +62,8 @@ class GroupNorm : public Module {
 class Dense : public Module {
  public:
   Dense(std::int64_t in_features, std::int64_t out_features, bool bias = true);
+
+ protected:
   Tensor forward(const Tensor& x) override;
 
  private:
@@ -67,6 +75,8 @@ class Dense : public Module {
 class ResBlockGN : public Module {
  public:
   explicit ResBlockGN(std::int64_t channels, int groups = 0);
+
+ protected:
   Tensor forward(const Tensor& x) override;
 
  private:

@@ -53,7 +53,7 @@ void save_module(const Module& module, const std::filesystem::path& path,
 /// Loads the parameters of `module` from `path`. Throws FileFormatError, naming the file and
 /// the parameter, when a parameter is missing, has another shape or dtype, or the file holds
 /// a tensor the module does not have. Returns the file's metadata. Nothing is changed
-/// unless every parameter matches.
+/// unless every parameter matches; then every parameter counts as initialised.
 std::map<std::string, std::string> load_module(Module& module, const std::filesystem::path& path);
 
 }  // namespace ropes::nn
