@@ -8,6 +8,7 @@
 //                                                 (batch 32 in micro-batches of M), with
 //                                                 its time and peak resident memory
 #include <sys/resource.h>
+#include <unistd.h>
 #include <Eigen/Core>
 
 #include <algorithm>
@@ -15,16 +16,18 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <functional>
 #include <map>
 #include <string>
 #include <vector>
 
 #include "networks.hpp"
-#include "ropes_nn/adam.hpp"
+#include "ropes_nn/batch_loader.hpp"
 #include "ropes_nn/ops.hpp"
 #include "ropes_nn/parallel.hpp"
 #include "ropes_nn/philox.hpp"
+#include "ropes_nn/train_step.hpp"
 
 using namespace ropes::nn;
 using Clock = std::chrono::steady_clock;
@@ -105,6 +108,59 @@ void report(const char* name, double ours, const std::map<std::string, double>& 
   std::printf("\n");
 }
 
+// mean squared error of each sample: [N, ...] -> [N]
+Tensor per_sample_mse(const Tensor& prediction, const Tensor& target) {
+  std::vector<int> axes;
+  for (int a = 1; a < prediction.rank(); ++a)
+    axes.push_back(a);
+  return mean(square(sub(prediction, target)), axes);
+}
+
+struct LoaderFigure {
+  double images_per_s = 0;
+  std::string what;
+};
+
+// BatchLoader throughput: a dataset of 128x128x1 u8 images (4 shards) in a temporary
+// directory, read in shuffled batches of 32 and converted to float tensors in [0, 1]. The
+// files were just written, so they come from the page cache: this is the loader's own cost.
+LoaderFigure loader_rate(bool prefetch, bool quick) {
+  const std::int64_t per_shard = 512, shards = 4;
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
+                                    ("ropes_nn_bench_loader_" + std::to_string(::getpid()));
+  const std::vector<ColumnSpec> columns = {{"images", DType::kU8, {1, 128, 128}}};
+  PhiloxStream rng(4, 0);
+  for (int s = 0; s < shards; ++s) {
+    NpyArray images{DType::kU8,
+                    {per_shard, 1, 128, 128},
+                    std::vector<std::uint8_t>(static_cast<std::size_t>(per_shard) * 128 * 128)};
+    for (std::uint8_t& v : images.data)
+      v = static_cast<std::uint8_t>(rng.next_u32());
+    write_dataset_shard(dir, s, columns, {images});
+  }
+  write_dataset_manifest(dir, columns, static_cast<int>(shards), "{}");
+  const DatasetReader reader = DatasetReader::open(dir);
+  BatchLoaderOptions options;
+  options.columns = {"images"};
+  options.batch_size = 32;
+  options.prefetch = prefetch;
+  BatchLoader loader(reader, options);
+  const int batches = quick ? 64 : 256;
+  // the consumer touches every value, as a training step would
+  double checksum = 0;
+  const auto t0 = Clock::now();
+  for (int b = 0; b < batches; ++b) {
+    const Batch batch = loader.next();
+    const float* p = batch.tensor("images").data();
+    checksum += p[batch.tensor("images").numel() - 1];
+  }
+  const double s = seconds_since(t0);
+  std::filesystem::remove_all(dir);
+  return {batches * 32 / s + 0 * checksum,
+          std::string("batch 32, shuffled over ") + std::to_string(per_shard * shards) +
+              " rows, page cache warm, " + (prefetch ? "read ahead on a thread" : "no read-ahead")};
+}
+
 // one AE1 training step at paper width, batch 32 split into micro-batches
 int paper_ae1(int micro_batch) {
   if (micro_batch < 1 || 32 % micro_batch != 0) {
@@ -123,14 +179,16 @@ int paper_ae1(int micro_batch) {
   const Tensor x(Shape{32, 1, 128, 128}, pixels);
   const std::size_t parts = static_cast<std::size_t>(32 / micro_batch);
   const auto t0 = Clock::now();
-  const double loss = train_step(
-      adam,
-      [&](std::size_t i) {
-        const Tensor xi = slice(x, 0, static_cast<std::int64_t>(i) * micro_batch,
-                                static_cast<std::int64_t>(i + 1) * micro_batch);
-        return mse_loss((*ae.decoder)((*ae.encoder)(xi)), xi);
-      },
-      std::vector<double>(parts, 1.0 / static_cast<double>(parts)));
+  StepOptions options;
+  options.micro_batches = parts;
+  const double loss = train_step(adam, mean_loss([&](std::size_t i) {
+                                   const Tensor xi =
+                                       slice(x, 0, static_cast<std::int64_t>(i) * micro_batch,
+                                             static_cast<std::int64_t>(i + 1) * micro_batch);
+                                   return per_sample_mse((*ae.decoder)((*ae.encoder)(xi)), xi);
+                                 }),
+                                 options)
+                          .loss;
   const double s = seconds_since(t0);
   rusage usage{};
   getrusage(RUSAGE_SELF, &usage);
@@ -175,6 +233,7 @@ int main(int argc, char** argv) {
   const auto peer = peer_wanted ? run_peer(quick, threads) : std::map<std::string, double>{};
 
   // AE1 at two widths: 128x128x1 images, batch 32
+  std::map<std::string, double> ae1_rate;
   for (const auto& [m, label] : {std::pair{1.0 / 8, "ae1_x1/8"}, std::pair{1.0 / 4, "ae1_x1/4"}}) {
     bench::Ae1 ae(m);
     std::vector<Tensor> params = ae.encoder->parameters();
@@ -189,18 +248,28 @@ int main(int argc, char** argv) {
     reset_flop_count();
     const double s = median_seconds(
         [&] {
-          train_step(adam,
-                     [&](std::size_t) { return mse_loss((*ae.decoder)((*ae.encoder)(x)), x); },
-                     {1.0});
+          train_step(adam, mean_loss([&](std::size_t) {
+                       return per_sample_mse((*ae.decoder)((*ae.encoder)(x)), x);
+                     }));
         },
         repeats);
     const double flops = static_cast<double>(flop_count()) / (repeats + 1);
     report((std::string(label) + "_train").c_str(), 32 / s, peer, "images/s", true, flops / s / 1e9,
            peak);
+    ae1_rate[label] = 32 / s;
     const Tensor one = slice(x, 0, 0, 1);
     GradModeGuard no_grad(false);
     const double latency = median_seconds([&] { (*ae.encoder)(one); }, repeats * 5);
     report((std::string(label) + "_encode_latency_ms").c_str(), 1000 * latency, peer, "ms", false);
+  }
+
+  // the loader feeding AE1: shuffled batches of 32 u8 images into float tensors
+  for (const bool prefetch : {true, false}) {
+    const LoaderFigure f = loader_rate(prefetch, quick);
+    std::printf("%-30s %10.2f %-12s  = %.0fx ae1_x1/8_train, %.0fx ae1_x1/4_train (%s)\n",
+                prefetch ? "loader_u8_to_f32_prefetch" : "loader_u8_to_f32_sync", f.images_per_s,
+                "images/s", f.images_per_s / ae1_rate["ae1_x1/8"],
+                f.images_per_s / ae1_rate["ae1_x1/4"], f.what.c_str());
   }
 
   // LDR: 8x8x2 codes, batch 64
@@ -216,8 +285,10 @@ int main(int argc, char** argv) {
     const Tensor codes(Shape{64, 2, 8, 8}, y), labels(Shape{64, 1}, t);
     const double s = median_seconds(
         [&] {
-          train_step(adam, [&](std::size_t) { return bce_with_logits(ldr.forward(codes), labels); },
-                     {1.0});
+          train_step(adam, mean_loss([&](std::size_t) {
+                       return reshape(bce_with_logits_elementwise(ldr.forward(codes), labels),
+                                      Shape{64});
+                     }));
         },
         repeats * 3);
     report("ldr_train", 64 / s, peer, "images/s", true);
@@ -240,15 +311,19 @@ int main(int argc, char** argv) {
     const Tensor target(Shape{6}, e);
     const double s = median_seconds(
         [&] {
-          train_step(adam,
-                     [&](std::size_t) {
-                       const Tensor z = ae.encode(codes);
-                       const Tensor recon = ae.decode(z);
-                       const Tensor jtv = grad({recon}, {z}, {scores}, /*create_graph=*/true)[0];
-                       return add(mse_loss(recon, codes),
-                                  sum(square(sub(mean(abs(jtv), {0}), target))));
-                     },
-                     {1.0});
+          // statistics: per-sample reconstruction error and |J_g(z)^T v|; the loss is
+          // mean error + || mean |J_g^T v| - e_1 ||^2
+          BatchLoss loss;
+          loss.statistics = [&](std::size_t, bool create_graph) {
+            const Tensor z = ae.encode(codes);
+            const Tensor recon = ae.decode(z);
+            const Tensor jtv = grad({recon}, {z}, {scores}, create_graph)[0];
+            return std::vector<Tensor>{per_sample_mse(recon, codes), abs(jtv)};
+          };
+          loss.outer = [&](const std::vector<Tensor>& m) {
+            return add(m[0], sum(square(sub(m[1], target))));
+          };
+          train_step(adam, loss);
         },
         repeats);
     report(label, 64 / s, peer, "images/s", true);

@@ -1,10 +1,10 @@
 // Example from the ropes_nn README: define a small CNN, train it a few steps on generated
 // data (estimate the radius of a disc from its 16x16 image), save it and load it back.
-#include <ropes_nn/adam.hpp>
+#include <ropes_nn/checkpoint.hpp>
 #include <ropes_nn/layers.hpp>
 #include <ropes_nn/ops.hpp>
 #include <ropes_nn/philox.hpp>
-#include <ropes_nn/safetensors.hpp>
+#include <ropes_nn/train_step.hpp>
 
 #include <cmath>
 #include <cstdio>
@@ -53,27 +53,28 @@ int main() {
   float first = 0.0f, last = 0.0f;
   for (std::uint64_t step = 0; step < 150; ++step) {
     make_batch(step, 32, &images, &radii);
-    // two micro-batches of 16, weighted by their share of the batch
-    const double loss = train_step(adam,
-                                   [&](std::size_t half) {
-                                     const std::int64_t begin =
-                                         static_cast<std::int64_t>(half) * 16;
-                                     return mse_loss(predict(slice(images, 0, begin, begin + 16)),
-                                                     slice(radii, 0, begin, begin + 16));
-                                   },
-                                   {0.5, 0.5});
+    // two micro-batches of 16; the loss is the mean over all 32 per-sample squared errors
+    const BatchLoss loss = mean_loss([&](std::size_t half) {
+      const std::int64_t begin = static_cast<std::int64_t>(half) * 16;
+      const Tensor error =
+          sub(predict(slice(images, 0, begin, begin + 16)), slice(radii, 0, begin, begin + 16));
+      return reshape(square(error), Shape{16});
+    });
+    StepOptions options;
+    options.micro_batches = 2;
+    const double loss_value = train_step(adam, loss, options).loss;
     if (step == 0)
-      first = static_cast<float>(loss);
-    last = static_cast<float>(loss);
+      first = static_cast<float>(loss_value);
+    last = static_cast<float>(loss_value);
     if (step % 50 == 0 || step == 149)
-      std::printf("step %3llu  mse %.4f\n", (unsigned long long)step, loss);
+      std::printf("step %3llu  mse %.4f\n", (unsigned long long)step, loss_value);
   }
 
   // save, load into a fresh network, and check it predicts the same
   const auto path = std::filesystem::temp_directory_path() / "ropes_nn_example_head.safetensors";
   save_module(head, path, {{"task", "disc radius"}});
   Dense reloaded(8 * 4 * 4, 1);
-  const auto metadata = load_module(reloaded, path);
+  const auto metadata = load_module(reloaded, path).metadata;
   std::filesystem::remove(path);
   const Tensor f = flatten((*features)(images));
   const bool same = head(f).to_vector() == reloaded(f).to_vector();

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <set>
 #include <stdexcept>
 #include <string>
 
@@ -9,32 +10,74 @@
 
 namespace ropes::nn {
 
-Adam::Adam(std::vector<Tensor> params, AdamOptions options)
-    : params_(std::move(params)), options_(options) {
-  const auto& o = options_;
-  if (!(o.lr > 0) || !(o.beta1 >= 0 && o.beta1 < 1) || !(o.beta2 >= 0 && o.beta2 < 1) ||
-      !(o.eps > 0) || !(o.weight_decay >= 0)) {
-    throw std::invalid_argument(
-        "Adam: lr=" + std::to_string(o.lr) + " beta1=" + std::to_string(o.beta1) +
-        " beta2=" + std::to_string(o.beta2) + " eps=" + std::to_string(o.eps) +
-        " weight_decay=" + std::to_string(o.weight_decay) +
-        "; expected lr > 0, betas in [0, 1), eps > 0, weight_decay >= 0");
+namespace {
+void check_options(const AdamOptions& o, const char* function) {
+  const std::string problem = o.problem();
+  if (!problem.empty())
+    throw std::invalid_argument(std::string(function) + ": " + problem);
+}
+
+std::vector<std::pair<std::string, Tensor>> numbered(const std::vector<Tensor>& params) {
+  std::vector<std::pair<std::string, Tensor>> named;
+  for (std::size_t i = 0; i < params.size(); ++i)
+    named.emplace_back("param." + std::to_string(i), params[i]);
+  return named;
+}
+}  // namespace
+
+std::string AdamOptions::problem() const {
+  if (lr > 0 && std::isfinite(lr) && beta1 >= 0 && beta1 < 1 && beta2 >= 0 && beta2 < 1 &&
+      eps > 0 && weight_decay >= 0) {
+    return "";
   }
-  for (std::size_t i = 0; i < params_.size(); ++i) {
-    if (!params_[i].defined() || !params_[i].requires_grad() || !params_[i].is_leaf()) {
-      throw std::invalid_argument("Adam: parameter " + std::to_string(i) +
-                                  " is not a leaf tensor that requires grad");
+  return "lr=" + std::to_string(lr) + " beta1=" + std::to_string(beta1) +
+         " beta2=" + std::to_string(beta2) + " eps=" + std::to_string(eps) +
+         " weight_decay=" + std::to_string(weight_decay) +
+         "; expected lr > 0, betas in [0, 1), eps > 0, weight_decay >= 0";
+}
+
+Adam::Adam(std::vector<std::pair<std::string, Tensor>> params, AdamOptions options)
+    : options_(options) {
+  check_options(options_, "Adam");
+  std::set<std::string> seen;
+  for (std::size_t i = 0; i < params.size(); ++i) {
+    const auto& [name, p] = params[i];
+    if (name.empty() || !seen.insert(name).second) {
+      throw std::invalid_argument("Adam: parameter " + std::to_string(i) + " is named '" + name +
+                                  "'; expected a distinct, non-empty name");
     }
-    m_.emplace_back(static_cast<std::size_t>(params_[i].numel()), 0.0f);
+    if (!p.defined() || !p.requires_grad() || !p.is_leaf()) {
+      throw std::invalid_argument("Adam: parameter '" + name +
+                                  "' is not a leaf tensor that requires grad");
+    }
+    params_.push_back(p);
+    names_.push_back(name);
+    m_.emplace_back(static_cast<std::size_t>(p.numel()), 0.0f);
+    v_.emplace_back(static_cast<std::size_t>(p.numel()), 0.0f);
     param_steps_.push_back(0);
-    v_.emplace_back(static_cast<std::size_t>(params_[i].numel()), 0.0f);
   }
+}
+
+Adam::Adam(const std::vector<Tensor>& params, AdamOptions options)
+    : Adam(numbered(params), options) {}
+
+void Adam::set_lr(double lr) {
+  if (!(lr >= 0) || !std::isfinite(lr)) {
+    throw std::invalid_argument("Adam::set_lr: " + std::to_string(lr) +
+                                "; expected a finite rate >= 0");
+  }
+  options_.lr = lr;
+}
+
+void Adam::set_options(const AdamOptions& options) {
+  check_options(options, "Adam::set_options");
+  options_ = options;
 }
 
 void Adam::update(std::size_t i, const Tensor& grad) {
   Tensor& p = params_[i];
   if (grad.shape() != p.shape()) {
-    throw std::invalid_argument("Adam::step: gradient " + std::to_string(i) + " has shape " +
+    throw std::invalid_argument("Adam::step: gradient of '" + names_[i] + "' has shape " +
                                 grad.shape().str() + "; its parameter has " + p.shape().str());
   }
   const auto b1 = static_cast<float>(options_.beta1);
@@ -56,7 +99,17 @@ void Adam::update(std::size_t i, const Tensor& grad) {
   }
 }
 
+void Adam::set_param_steps(std::size_t i, std::int64_t steps) {
+  if (steps < 0) {
+    throw std::invalid_argument("Adam::set_param_steps: '" + names_.at(i) + "' gets " +
+                                std::to_string(steps) + " steps; expected >= 0");
+  }
+  param_steps_.at(i) = steps;
+}
+
 void Adam::set_steps(std::int64_t steps) {
+  if (steps < 0)
+    throw std::invalid_argument("Adam::set_steps: " + std::to_string(steps) + "; expected >= 0");
   steps_ = steps;
   std::fill(param_steps_.begin(), param_steps_.end(), steps);
 }
@@ -65,6 +118,13 @@ void Adam::step(const std::vector<Tensor>& grads) {
   if (grads.size() != params_.size()) {
     throw std::invalid_argument("Adam::step: " + std::to_string(grads.size()) + " gradients for " +
                                 std::to_string(params_.size()) + " parameters");
+  }
+  for (std::size_t i = 0; i < params_.size(); ++i) {
+    if (grads[i].defined() && grads[i].shape() != params_[i].shape()) {
+      throw std::invalid_argument("Adam::step: gradient of '" + names_[i] + "' has shape " +
+                                  grads[i].shape().str() + "; its parameter has " +
+                                  params_[i].shape().str());
+    }
   }
   ++steps_;
   for (std::size_t i = 0; i < params_.size(); ++i) {
@@ -108,34 +168,6 @@ double clip_grad_norm(std::vector<Tensor>& grads, double max_norm) {
     }
   }
   return norm;
-}
-
-double train_step(Adam& optimizer, const std::function<Tensor(std::size_t)>& micro_batch_loss,
-                  const std::vector<double>& weights, double clip_norm) {
-  if (weights.empty())
-    throw std::invalid_argument("train_step: no micro-batches");
-  const std::vector<Tensor>& params = optimizer.params();
-  std::vector<Tensor> total(params.size());
-  double loss_sum = 0.0;
-  for (std::size_t i = 0; i < weights.size(); ++i) {
-    const Tensor loss = micro_batch_loss(i);
-    const float value = loss.item();
-    if (!std::isfinite(value)) {
-      throw std::invalid_argument("train_step: micro-batch " + std::to_string(i) + " has loss " +
-                                  std::to_string(value) + "; no parameter was changed");
-    }
-    loss_sum += weights[i] * value;
-    const std::vector<Tensor> g = grad({loss}, params, {}, false, /*allow_unused=*/true);
-    GradModeGuard no_graph(false);
-    for (std::size_t k = 0; k < params.size(); ++k) {
-      const Tensor scaled = mul_scalar(g[k], static_cast<float>(weights[i]));
-      total[k] = total[k].defined() ? add(total[k], scaled) : scaled;
-    }
-  }
-  if (clip_norm > 0)
-    clip_grad_norm(total, clip_norm);
-  optimizer.step(total);
-  return loss_sum;
 }
 
 }  // namespace ropes::nn

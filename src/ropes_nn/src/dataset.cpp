@@ -15,6 +15,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "json_text.hpp"
 #include "ropes_nn/philox.hpp"
 #include "ropes_nn/sha256.hpp"
 
@@ -24,10 +25,11 @@ namespace {
 
 namespace fs = std::filesystem;
 using Json = nlohmann::json;
+using detail::describe;
+using detail::parse_json;
 
 constexpr std::uint64_t kMaxManifestBytes = std::uint64_t{64} << 20;
 constexpr std::uint64_t kMaxMarkerBytes = std::uint64_t{1} << 20;
-constexpr int kMaxJsonDepth = 64;
 constexpr std::size_t kMaxColumnNameLength = 64;
 constexpr std::size_t kVerifyChunkBytes = std::size_t{1} << 20;
 constexpr std::int64_t kMaxInt64 = std::numeric_limits<std::int64_t>::max();
@@ -252,41 +254,6 @@ NpyHeader check_column_file(const Fd& fd, const std::string& name, const ColumnS
 }
 
 // --- JSON ------------------------------------------------------------------------------------
-
-// a short description of a value read from a file (never dump() an untrusted value: its
-// recursion is as deep as the value)
-std::string describe(const Json& v) {
-  if (v.is_string()) {
-    const std::string& text = v.get_ref<const std::string&>();
-    return "\"" + text.substr(0, 40) + (text.size() > 40 ? "...\"" : "\"");
-  }
-  if (v.is_number_unsigned())
-    return std::to_string(v.get<std::uint64_t>());
-  if (v.is_number_integer())
-    return std::to_string(v.get<std::int64_t>());
-  if (v.is_number_float())
-    return std::to_string(v.get<double>());
-  return std::string("a JSON ") + v.type_name();
-}
-
-// parses `text`; "" and the value in `out`, or what is wrong. Nesting is bounded, so that
-// dumping the value later cannot overflow the stack.
-std::string parse_json(const std::string& text, Json* out) {
-  bool too_deep = false;
-  const Json::parser_callback_t limit = [&too_deep](int depth, Json::parse_event_t, Json&) {
-    if (depth > kMaxJsonDepth)
-      too_deep = true;
-    return !too_deep;
-  };
-  try {
-    *out = Json::parse(text, limit);
-  } catch (const Json::exception& e) {
-    return std::string("is not JSON: ") + e.what();
-  }
-  if (too_deep)
-    return "nests deeper than " + std::to_string(kMaxJsonDepth) + " levels";
-  return "";
-}
 
 // the text of a small file; a FileFormatError naming it when missing, too large or unreadable
 std::string read_text_file(const fs::path& path, std::uint64_t max_bytes,
@@ -596,6 +563,7 @@ struct DatasetReader::State {
   std::vector<ColumnSpec> columns;
   std::vector<std::uint64_t> row_bytes;   // per column
   std::string metadata;                   // compact JSON
+  Json metadata_value;                    // the same, parsed
   std::vector<std::int64_t> shard_first;  // first row of each shard, then rows
   std::vector<File> files;                // [shard * columns.size() + column]
 
@@ -707,6 +675,7 @@ DatasetReader DatasetReader::open(const fs::path& dir) {
   if (!metadata.is_object())
     fail(name, "metadata is " + describe(metadata) + "; expected an object");
   state->metadata = metadata.dump();
+  state->metadata_value = metadata;
 
   // every file open, its header and size as the manifest says
   for (std::size_t s = 0; s < records.size(); ++s) {
@@ -743,6 +712,28 @@ const ColumnSpec& DatasetReader::column(const std::string& name) const {
 }
 const std::string& DatasetReader::metadata_json() const {
   return state_->metadata;
+}
+
+const Json& DatasetReader::metadata() const {
+  return state_->metadata_value;
+}
+
+const Json& DatasetReader::metadata_at(const std::string& json_pointer,
+                                       const std::string& hint) const {
+  Json::json_pointer pointer;
+  try {
+    pointer = Json::json_pointer(json_pointer);
+  } catch (const Json::exception& e) {
+    throw std::invalid_argument(
+        "DatasetReader::metadata_at: '" + json_pointer +
+        "' is not a JSON pointer (RFC 6901, such as \"/regimes/0\"): " + e.what());
+  }
+  const Json& metadata = state_->metadata_value;
+  if (!metadata.contains(pointer)) {
+    fail((state_->dir / "manifest.json").string(),
+         "metadata has no " + json_pointer + (hint.empty() ? "" : " (" + hint + ")"));
+  }
+  return metadata.at(pointer);
 }
 
 void DatasetReader::read_rows(const std::string& column, std::int64_t first, std::int64_t count,
@@ -791,6 +782,43 @@ NpyArray DatasetReader::read_rows(const std::string& column, std::int64_t first,
   if (first >= 0 && count >= 0 && first <= state_->rows - count)
     array.data.resize(static_cast<std::size_t>(count) * state_->row_bytes[c]);
   read_rows(column, first, count, array.data.data());
+  return array;
+}
+
+void DatasetReader::read_rows_at(const std::string& column, const std::vector<std::int64_t>& rows,
+                                 void* out) const {
+  const State& st = *state_;
+  const std::size_t c = st.column_index(column);
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    if (rows[i] < 0 || rows[i] >= st.rows) {
+      throw std::out_of_range("DatasetReader::read_rows_at: rows[" + std::to_string(i) +
+                              "] = " + std::to_string(rows[i]) + " of column '" + column +
+                              "' lies outside the dataset's " + std::to_string(st.rows) +
+                              " rows (" + st.dir.string() + ")");
+    }
+  }
+  // runs of consecutive rows, each one read_rows
+  auto* dst = static_cast<std::uint8_t*>(out);
+  const std::uint64_t row_bytes = st.row_bytes[c];
+  for (std::size_t i = 0; i < rows.size();) {
+    std::size_t j = i + 1;
+    while (j < rows.size() && rows[j] == rows[j - 1] + 1)
+      ++j;
+    const auto count = static_cast<std::int64_t>(j - i);
+    read_rows(column, rows[i], count, dst);
+    dst += static_cast<std::uint64_t>(count) * row_bytes;
+    i = j;
+  }
+}
+
+NpyArray DatasetReader::read_rows_at(const std::string& column,
+                                     const std::vector<std::int64_t>& rows) const {
+  const std::size_t c = state_->column_index(column);
+  NpyArray array;
+  array.dtype = state_->columns[c].dtype;
+  array.shape = file_shape(static_cast<std::int64_t>(rows.size()), state_->columns[c].row_shape);
+  array.data.resize(rows.size() * state_->row_bytes[c]);
+  read_rows_at(column, rows, array.data.data());
   return array;
 }
 

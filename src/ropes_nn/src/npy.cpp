@@ -1,6 +1,10 @@
 #include "ropes_nn/npy.hpp"
 
+#include <fcntl.h>
+#include <signal.h>
 #include <unistd.h>
+
+#include <charconv>
 
 #include <cctype>
 #include <cerrno>
@@ -391,6 +395,36 @@ void write_file_atomically(const std::filesystem::path& path, const std::uint8_t
     const std::string reason = std::strerror(errno);
     std::remove(temp.c_str());
     fail(name, "cannot rename " + temp + " into place: " + reason);
+  }
+  // the rename itself reaches the disk with the directory (best effort: some file systems
+  // refuse fsync on a directory, and the file is in place either way)
+  const std::filesystem::path parent = path.has_parent_path() ? path.parent_path() : ".";
+  const int dir = ::open(parent.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dir >= 0) {
+    ::fsync(dir);
+    ::close(dir);
+  }
+}
+
+void remove_stale_temporaries(const std::filesystem::path& dir, const std::string& file_name) {
+  std::error_code ec;
+  if (!std::filesystem::is_directory(dir, ec))
+    return;
+  for (const auto& entry : std::filesystem::directory_iterator(dir, ec)) {
+    const std::string name = entry.path().filename().string();
+    const auto at = name.rfind(".tmp.");
+    if (at == std::string::npos || (!file_name.empty() && name.compare(0, at, file_name) != 0) ||
+        (!file_name.empty() && at != file_name.size())) {
+      continue;
+    }
+    const std::string digits = name.substr(at + 5);
+    long pid = 0;
+    const auto [end, error] = std::from_chars(digits.data(), digits.data() + digits.size(), pid);
+    if (error != std::errc() || end != digits.data() + digits.size() || pid <= 0)
+      continue;
+    // only a process that no longer exists leaves its temporary for good
+    if (::kill(static_cast<pid_t>(pid), 0) == -1 && errno == ESRCH)
+      std::filesystem::remove(entry.path(), ec);
   }
 }
 

@@ -631,13 +631,41 @@ Tensor mse_loss(const Tensor& prediction, const Tensor& target) {
   return mean(square(sub(prediction, target)));
 }
 
-Tensor bce_with_logits(const Tensor& logits, const Tensor& targets) {
-  require_defined(logits, "bce_with_logits", "logits");
-  require_defined(targets, "bce_with_logits", "targets");
+namespace {
+void check_bce_inputs(const Tensor& logits, const Tensor& targets, const char* op) {
+  require_defined(logits, op, "logits");
+  require_defined(targets, op, "targets");
   if (logits.shape() != targets.shape()) {
-    throw std::invalid_argument("bce_with_logits: logits " + logits.shape().str() +
+    throw std::invalid_argument(std::string(op) + ": logits " + logits.shape().str() +
                                 " and targets " + targets.shape().str() + " differ");
   }
+}
+}  // namespace
+
+Tensor bce_with_logits_elementwise(const Tensor& logits, const Tensor& targets) {
+  check_bce_inputs(logits, targets, "bce_with_logits_elementwise");
+  const float* z = logits.data();
+  const float* y = targets.data();
+  Buffer out(static_cast<std::size_t>(logits.numel()));
+  for (std::int64_t i = 0; i < logits.numel(); ++i) {
+    const double zi = z[i];
+    out[static_cast<std::size_t>(i)] =
+        static_cast<float>(std::max(zi, 0.0) - zi * y[i] + std::log1p(std::exp(-std::abs(zi))));
+  }
+  // as bce_with_logits, per element: sigmoid(z) - y and -z
+  return record(logits.shape(), std::move(out), {logits, targets}, "bce_with_logits_elementwise",
+                [](const Grads& in, const Tensor& g) {
+                  Grads r(2);
+                  if (in[0].requires_grad())
+                    r[0] = mul(sub(sigmoid(in[0]), in[1]), g);
+                  if (in[1].requires_grad())
+                    r[1] = mul(neg(in[0]), g);
+                  return r;
+                });
+}
+
+Tensor bce_with_logits(const Tensor& logits, const Tensor& targets) {
+  check_bce_inputs(logits, targets, "bce_with_logits");
   // value: mean(max(z, 0) - z y + log1p(exp(-|z|))), in double
   const float* z = logits.data();
   const float* y = targets.data();

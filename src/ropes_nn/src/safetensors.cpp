@@ -9,7 +9,7 @@
 #include <set>
 #include <stdexcept>
 
-#include "ropes_nn/module.hpp"
+#include "json_text.hpp"
 
 namespace ropes::nn {
 
@@ -139,11 +139,10 @@ Safetensors parse_safetensors(const std::uint8_t* bytes, std::size_t size,
   const std::uint64_t data_size = size - 8 - header_length;
 
   Json header;
-  try {
-    header = Json::parse(bytes + 8, bytes + 8 + header_length);
-  } catch (const Json::exception& e) {
-    fail(name, std::string("the header is not JSON: ") + e.what());
-  }
+  const std::string problem = detail::parse_json(
+      std::string(reinterpret_cast<const char*>(bytes) + 8, header_length), &header);
+  if (!problem.empty())
+    fail(name, "the header " + problem);
   if (!header.is_object())
     fail(name, "the header is not a JSON object");
 
@@ -238,52 +237,6 @@ Safetensors read_safetensors(const std::filesystem::path& path) {
 void write_safetensors(const std::filesystem::path& path, const Safetensors& file) {
   const std::vector<std::uint8_t> bytes = serialize_safetensors(file);
   write_file_atomically(path, bytes.data(), bytes.size());
-}
-
-void save_module(const Module& module, const std::filesystem::path& path,
-                 const std::map<std::string, std::string>& metadata) {
-  Safetensors file;
-  file.metadata = metadata;
-  for (const auto& [name, t] : module.named_parameters()) {
-    NpyArray a;
-    a.dtype = DType::kF32;
-    a.shape = t.shape().dims();
-    a.data.resize(static_cast<std::size_t>(t.numel()) * sizeof(float));
-    if (!a.data.empty())
-      std::memcpy(a.data.data(), t.data(), a.data.size());
-    file.tensors.emplace_back(name, std::move(a));
-  }
-  write_safetensors(path, file);
-}
-
-std::map<std::string, std::string> load_module(Module& module, const std::filesystem::path& path) {
-  const std::string name = path.string();
-  const Safetensors file = read_safetensors(path);
-  auto params = module.named_parameters();
-  // check everything before writing anything
-  std::set<std::string> known;
-  for (const auto& [pname, t] : params) {
-    known.insert(pname);
-    const NpyArray* a = file.find(pname);
-    if (!a)
-      fail(name, "has no tensor for parameter '" + pname + "'");
-    if (a->dtype != DType::kF32 || a->shape != t.shape().dims()) {
-      fail(name, "parameter '" + pname + "' is " + dtype_name(a->dtype) + " " +
-                     Shape(a->shape.size() <= 4 ? a->shape : std::vector<std::int64_t>{}).str() +
-                     " in the file; the module has f32 " + t.shape().str());
-    }
-  }
-  for (const auto& [tname, array] : file.tensors) {
-    if (!known.count(tname))
-      fail(name, "holds tensor '" + tname + "', which the module does not have");
-  }
-  for (auto& [pname, t] : params) {
-    const NpyArray* a = file.find(pname);
-    if (!a->data.empty())
-      std::memcpy(t.mutable_data(), a->data.data(), a->data.size());
-    module.mark_initialized(pname);
-  }
-  return file.metadata;
 }
 
 }  // namespace ropes::nn

@@ -17,6 +17,8 @@
 #include <thread>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "npy_arrays.hpp"
 #include "ropes_nn/sha256.hpp"
 
@@ -142,6 +144,21 @@ TEST_F(DatasetTest, RoundTripsThreeShards) {
   // a moved reader keeps its open files
   DatasetReader moved = std::move(reader);
   EXPECT_EQ(moved.read_rows("regime", 11, 1).data, make_rows(11, 1)[2].data);
+}
+
+TEST_F(DatasetTest, MetadataIsGivenParsedAndAMissingFieldIsNamed) {
+  write_dataset(dir_);
+  const DatasetReader reader = DatasetReader::open(dir_);
+  EXPECT_EQ(reader.metadata().at("seed").get<int>(), 7);
+  EXPECT_EQ(reader.metadata_at("/robot").get<std::string>(), "none");
+  // a dataset written before a field existed opens; the reader that needs the field says so
+  EXPECT_CONTAINS(file_error_of([&] {
+                    reader.metadata_at("/regimes/1/joint", "written by an older generator");
+                  }),
+                  (dir_ / "manifest.json").string() +
+                      ": metadata has no /regimes/1/joint (written by an older generator)");
+  EXPECT_CONTAINS(file_error_of([&] { reader.metadata_at("/seed/x"); }), "metadata has no /seed/x");
+  EXPECT_THROW(reader.metadata_at("regimes"), std::invalid_argument);
 }
 
 TEST_F(DatasetTest, RandomAccessAcrossShardBoundariesMatchesTheWrittenRows) {

@@ -101,6 +101,20 @@ TEST(GradCheck, MatmulAndLosses) {
   expect_first_order(
       "bce_with_logits",
       [&labels](const V& v) { return bce_with_logits(mul_scalar(v[0], 4.0f), labels); }, {a});
+  // per element: the logits and the targets (a soft label's gradient is -z)
+  expect_first_order(
+      "bce_with_logits_elementwise",
+      [](const V& v) { return bce_with_logits_elementwise(mul_scalar(v[0], 4.0f), sigmoid(v[1])); },
+      {a, t});
+}
+
+TEST(Losses, ElementwiseBceAveragesToBceWithLogits) {
+  const Tensor z = mul_scalar(random_tensor(Shape{5, 3}, 15), 6.0f);
+  const Tensor y = Tensor(Shape{5, 3}, {0, 1, 1, 0, 1, 0, 0, 1, 0.5f, 1, 0, 0, 1, 1, 0});
+  const Tensor each = bce_with_logits_elementwise(z, y);
+  EXPECT_EQ(each.shape(), z.shape());
+  EXPECT_NEAR(mean(each).item(), bce_with_logits(z, y).item(), 1e-6);
+  EXPECT_THROW(bce_with_logits_elementwise(z, Tensor::zeros(Shape{5})), std::invalid_argument);
 }
 
 // second order: what the score-sparsity loss differentiates through

@@ -30,6 +30,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json_fwd.hpp>
+
 #include "ropes_nn/npy.hpp"
 
 namespace ropes::nn {
@@ -127,6 +129,14 @@ class DatasetReader {
   const ColumnSpec& column(const std::string& name) const;
   /// The manifest's metadata object as compact JSON text.
   const std::string& metadata_json() const;
+  /// The same, parsed (include <nlohmann/json.hpp> to use it).
+  const nlohmann::json& metadata() const;
+  /// The metadata value at `json_pointer` (RFC 6901, e.g. "/regimes/1/joint"). A value the
+  /// dataset lacks (written by an older writer, say) is a FileFormatError naming
+  /// manifest.json, the pointer and `hint` (what to do about it); a pointer that is not
+  /// RFC 6901 syntax is std::invalid_argument.
+  const nlohmann::json& metadata_at(const std::string& json_pointer,
+                                    const std::string& hint = "") const;
 
   /// Copies rows [first, first + count) of `column` into `out`, which must hold
   /// count * (bytes of one row) bytes, rows in order, C order within a row. The range may
@@ -137,6 +147,16 @@ class DatasetReader {
                  void* out) const;
   /// As above, into a new array of the column's dtype and shape [count, row_shape...].
   NpyArray read_rows(const std::string& column, std::int64_t first, std::int64_t count) const;
+
+  /// Gathers the rows `rows` (any order, repeats allowed) of `column` into `out`, which must
+  /// hold rows.size() rows, in the order given. Runs of consecutive rows are read with one
+  /// pread per shard. Throws std::out_of_range for an unknown column or a row outside
+  /// [0, rows()) (naming its position in `rows` and its value), FileFormatError as
+  /// read_rows. Nothing is read before every row is checked.
+  void read_rows_at(const std::string& column, const std::vector<std::int64_t>& rows,
+                    void* out) const;
+  /// As above, into a new array of shape [rows.size(), row_shape...].
+  NpyArray read_rows_at(const std::string& column, const std::vector<std::int64_t>& rows) const;
 
   /// Recomputes the SHA-256 of every shard file (through the open descriptors, so it checks
   /// what read_rows() serves) and compares it with the manifest. Throws FileFormatError

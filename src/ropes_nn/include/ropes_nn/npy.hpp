@@ -86,7 +86,14 @@ void write_npy(const std::filesystem::path& path, const NpyArray& array);
 
 /// Writes `bytes` to `path` through a temporary file and a rename (the files of this
 /// library all go through it). Throws FileFormatError naming the file on failure.
+/// The temporary is "<path>.tmp.<pid>", written, flushed and fsync'ed before the rename;
+/// the directory is fsync'ed after it.
 void write_file_atomically(const std::filesystem::path& path, const std::uint8_t* bytes,
                            std::size_t size);
+
+/// Removes the temporaries ("<name>.tmp.<pid>") that write_file_atomically calls of killed
+/// processes left in `dir`; those of processes still running stay. With `file_name`, only
+/// that file's ("<file_name>.tmp.<pid>"). A missing directory is not an error.
+void remove_stale_temporaries(const std::filesystem::path& dir, const std::string& file_name = "");
 
 }  // namespace ropes::nn

@@ -130,5 +130,8 @@ Tensor mse_loss(const Tensor& prediction, const Tensor& target);
 /// mean(max(z, 0) - z * y + log(1 + exp(-|z|))): binary cross-entropy of logits z against
 /// targets y in [0, 1], stable for any z (as PyTorch's BCEWithLogitsLoss).
 Tensor bce_with_logits(const Tensor& logits, const Tensor& targets);
+/// The same loss per element, not averaged (same shape as the logits): the per-sample
+/// statistic of a mean loss over micro-batches (train_step.hpp).
+Tensor bce_with_logits_elementwise(const Tensor& logits, const Tensor& targets);
 
 }  // namespace ropes::nn

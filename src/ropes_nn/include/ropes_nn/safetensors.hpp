@@ -4,7 +4,8 @@
 /// N bytes of JSON ({"__metadata__": {string: string}, name: {"dtype", "shape",
 /// "data_offsets": [begin, end]}, ...}), then the tensors' raw little-endian bytes, offsets
 /// relative to the end of the header. Files written here open in Python's safetensors and
-/// PyTorch; reading checks everything the format promises before allocating.
+/// PyTorch; reading checks everything the format promises before allocating. Modules and
+/// training states are saved through it by checkpoint.hpp.
 
 #include <cstdint>
 #include <filesystem>
@@ -16,8 +17,6 @@
 #include "ropes_nn/npy.hpp"
 
 namespace ropes::nn {
-
-class Module;
 
 /// Named arrays in file order, and the free-form string metadata.
 struct Safetensors {
@@ -46,14 +45,5 @@ Safetensors parse_safetensors(const std::uint8_t* bytes, std::size_t size, const
 Safetensors read_safetensors(const std::filesystem::path& path);
 /// Writes through a temporary file and a rename.
 void write_safetensors(const std::filesystem::path& path, const Safetensors& file);
-
-/// Saves every parameter of `module` under its dotted name as F32, with `metadata`.
-void save_module(const Module& module, const std::filesystem::path& path,
-                 const std::map<std::string, std::string>& metadata = {});
-/// Loads the parameters of `module` from `path`. Throws FileFormatError, naming the file and
-/// the parameter, when a parameter is missing, has another shape or dtype, or the file holds
-/// a tensor the module does not have. Returns the file's metadata. Nothing is changed
-/// unless every parameter matches; then every parameter counts as initialised.
-std::map<std::string, std::string> load_module(Module& module, const std::filesystem::path& path);
 
 }  // namespace ropes::nn

@@ -1,0 +1,40 @@
+#include "json_text.hpp"
+
+namespace ropes::nn::detail {
+
+using Json = nlohmann::json;
+
+std::string parse_json(const std::string& text, Json* out) {
+  bool too_deep = false;
+  const Json::parser_callback_t limit = [&too_deep](int depth, Json::parse_event_t, Json&) {
+    if (depth > kMaxJsonDepth)
+      too_deep = true;
+    return !too_deep;
+  };
+  try {
+    *out = Json::parse(text, limit);
+  } catch (const Json::exception& e) {
+    return std::string("is not JSON: ") + e.what();
+  }
+  if (too_deep)
+    return "nests deeper than " + std::to_string(kMaxJsonDepth) + " levels";
+  return "";
+}
+
+std::string describe(const Json& v) {
+  if (v.is_string()) {
+    const std::string& text = v.get_ref<const std::string&>();
+    return "\"" + text.substr(0, 40) + (text.size() > 40 ? "...\"" : "\"");
+  }
+  if (v.is_number_unsigned())
+    return std::to_string(v.get<std::uint64_t>());
+  if (v.is_number_integer())
+    return std::to_string(v.get<std::int64_t>());
+  if (v.is_number_float())
+    return Json(v.get<double>()).dump();
+  if (v.is_boolean())
+    return v.get<bool>() ? "true" : "false";
+  return std::string("a JSON ") + v.type_name();
+}
+
+}  // namespace ropes::nn::detail
