@@ -4,10 +4,6 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include <signal.h>
-
-#include <cerrno>
-#include <charconv>
 #include <chrono>
 #include <condition_variable>
 #include <cstdio>
@@ -19,6 +15,7 @@
 
 #include "json_config.hpp"
 #include "ropes_nn/dataset.hpp"
+#include "ropes_nn/npy.hpp"
 #include "ropes_nn/sha256.hpp"
 #include "ropes_sim/intervention_sampler.hpp"
 #include "ropes_sim/kinematics.hpp"
@@ -214,33 +211,12 @@ std::string first_difference(const Json& ours, const Json& theirs, const std::st
   return path + ": " + short_dump(ours) + " now, " + short_dump(theirs) + " there";
 }
 
-// removes temporary files ("<name>.tmp.<pid>", see nn::write_file_atomically) that a killed
-// run left behind; those of a process still running (another --shard run) stay
-void remove_stale_temporaries(const fs::path& dir) {
-  for (const fs::path& d : {dir, dir / "shards"}) {
-    if (!fs::is_directory(d))
-      continue;
-    for (const auto& entry : fs::directory_iterator(d)) {
-      const std::string name = entry.path().filename().string();
-      const auto at = name.rfind(".tmp.");
-      if (at == std::string::npos)
-        continue;
-      const std::string digits = name.substr(at + 5);
-      long pid = 0;
-      const auto [end, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), pid);
-      if (ec != std::errc() || end != digits.data() + digits.size() || pid <= 0)
-        continue;
-      if (::kill(static_cast<pid_t>(pid), 0) == -1 && errno == ESRCH)
-        fs::remove(entry.path());
-    }
-  }
-}
-
 // checks that `dir` is empty, new, or holds this dataset; returns true when it is complete
 bool prepare_directory(const fs::path& dir, const std::string& metadata) {
   const Json ours = Json::parse(metadata);
   const fs::path manifest = dir / "manifest.json", generation = dir / kGenerationFile;
-  remove_stale_temporaries(dir);
+  nn::remove_stale_temporaries(dir);
+  nn::remove_stale_temporaries(dir / "shards");
   if (fs::exists(manifest)) {
     const Json theirs = read_json(manifest);
     const Json& meta = theirs.contains("metadata") ? theirs["metadata"] : Json();
@@ -330,6 +306,17 @@ std::string metadata_of(const Setup& s, const DatasetConfig& config, std::uint64
   Json cameras = Json::array();
   for (const Camera& c : config.rig.cameras)
     cameras.push_back(c.name);
+  // each regime parsed, so that no reader parses "do(panda_joint2)=1"
+  Json regimes = Json::array();
+  for (std::size_t r = 0; r < s.sampler.regimes().size(); ++r) {
+    const InterventionSampler::Regime& regime = s.sampler.regimes()[r];
+    const bool observational = regime.joint < 0;
+    regimes.push_back(
+        {{"name", s.sampler.regime_names()[r]},
+         {"joint", observational ? Json() : Json(s.sampler.joint_names()[regime.joint])},
+         {"joint_index", observational ? Json() : Json(regime.joint)},
+         {"intervention", observational ? Json() : Json(regime.intervention)}});
+  }
   const Json meta{{"generator", "ropes-generate"},
                   {"ropes_sim_version", ROPES_SIM_VERSION},
                   {"sim_dataset_version", kSimDatasetVersion},
@@ -349,6 +336,7 @@ std::string metadata_of(const Setup& s, const DatasetConfig& config, std::uint64
                   {"cameras", cameras},
                   {"joint_names", s.sampler.joint_names()},
                   {"regime_names", s.sampler.regime_names()},
+                  {"regimes", regimes},
                   {"shards", config.shard_count()}};
   return meta.dump();
 }

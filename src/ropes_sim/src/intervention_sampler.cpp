@@ -115,12 +115,15 @@ InterventionSampler InterventionSampler::load(const std::filesystem::path& path)
     }
   }
   s.regimes_.push_back("observational");
+  s.regime_info_.push_back({-1, 0});
   for (std::size_t j = 0; j < s.specs_.size(); ++j) {
     if (s.specs_[j].interventions.empty())
       continue;
     s.intervened_.push_back(static_cast<int>(j));
-    for (int k = 1; k <= 2; ++k)
+    for (int k = 1; k <= 2; ++k) {
       s.regimes_.push_back("do(" + s.joints_[j] + ")=" + std::to_string(k));
+      s.regime_info_.push_back({static_cast<int>(j), k});
+    }
   }
   return s;
 }

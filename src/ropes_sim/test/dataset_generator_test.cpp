@@ -96,6 +96,15 @@ TEST(DatasetGenerator, RowsHoldWhatTheSamplerAndRendererGive) {
   EXPECT_EQ(meta["cameras"], (std::vector<std::string>{"yaw45", "yaw135"}));
   EXPECT_EQ(meta["regime_names"].size(), 13u);
   EXPECT_EQ(meta["joint_names"][0], "panda_joint1");
+  // every regime parsed: the joint it intervenes on and which intervention
+  EXPECT_EQ(meta["sim_dataset_version"], 2);
+  ASSERT_EQ(meta["regimes"].size(), 13u);
+  EXPECT_EQ(meta["regimes"][0], nlohmann::json::parse(R"({"name": "observational", "joint": null,
+                                   "joint_index": null, "intervention": null})"));
+  EXPECT_EQ(meta["regimes"][5], nlohmann::json::parse(R"({"name": "do(panda_joint3)=1",
+                                   "joint": "panda_joint3", "joint_index": 2, "intervention": 1})"));
+  EXPECT_EQ(meta["regimes"][12]["joint"], "panda_joint6");
+  EXPECT_EQ(meta["regimes"][12]["intervention"], 2);
 
   // row 4 * 13 + 5 = anchor 4 (second shard), regime 5: do(joint 3)=1
   const auto sampler = InterventionSampler::load(config.distribution);
@@ -119,6 +128,31 @@ TEST(DatasetGenerator, RowsHoldWhatTheSamplerAndRendererGive) {
   const auto images = reader.read_rows("images", row, 1);
   EXPECT_EQ(0, std::memcmp(images.data.data() + 40 * 32, expected.data(), expected.size()));
   reader.verify();
+}
+
+// a dataset of sim_dataset_version 1 (before "regimes"): it opens and reads as before; a
+// reader that needs the regimes gets an error that names the field and the manifest
+TEST(DatasetGenerator, ADatasetWithoutRegimeMetadataStillOpens) {
+  const fs::path dir = temp_dir("old");
+  generate_dataset(DatasetConfig::load(write_config(dir)), options(dir / "d", 2));
+  const fs::path manifest = dir / "d" / "manifest.json";
+  nlohmann::json m = nlohmann::json::parse(std::ifstream(manifest));
+  m["metadata"].erase("regimes");
+  m["metadata"]["sim_dataset_version"] = 1;
+  std::ofstream(manifest) << m.dump(2) << "\n";
+  const auto reader = nn::DatasetReader::open(dir / "d");
+  EXPECT_EQ(reader.rows(), 5 * 13);
+  EXPECT_EQ(reader.metadata_at("/regime_names/5").get<std::string>(), "do(panda_joint3)=1");
+  try {
+    reader.metadata_at("/regimes", "sim_dataset_version 1; regenerate it with ropes-generate");
+    ADD_FAILURE() << "an old dataset had regimes";
+  } catch (const nn::FileFormatError& e) {
+    EXPECT_NE(std::string(e.what()).find(manifest.string() + ": metadata has no /regimes "
+                                                             "(sim_dataset_version 1; "),
+              std::string::npos)
+        << e.what();
+  }
+  reader.verify();  // the shards are untouched
 }
 
 TEST(DatasetGenerator, RefusesADirectoryHoldingSomethingElse) {

@@ -23,6 +23,10 @@ m = json.load(open(f"{d}/manifest.json"))
 meta = m["metadata"]
 regimes, cams = (7, 1) if name == "1c" else (13, 2)
 assert meta["samples_per_anchor"] == regimes and len(meta["cameras"]) == cams, meta
+# every regime parsed in the metadata (sim_dataset_version 2)
+assert meta["sim_dataset_version"] == 2 and len(meta["regimes"]) == regimes, meta
+assert meta["regimes"][0] == {"name": "observational", "joint": None, "joint_index": None,
+                              "intervention": None}, meta["regimes"][0]
 rows = 0
 for shard in m["shards"]:
     for col, f in shard["files"].items():
@@ -40,7 +44,11 @@ for shard in m["shards"]:
     assert list(ac) == [i // regimes for i in range(rows, rows + n)], ac
     # an intervention changes the intervened joint only (independent model)
     for r in range(1, regimes):
-        j = meta["joint_names"].index(meta["regime_names"][r][3:-3])
+        regime = meta["regimes"][r]
+        j = regime["joint_index"]
+        assert regime["name"] == meta["regime_names"][r] == \
+            f"do({regime['joint']})={regime['intervention']}", regime
+        assert meta["joint_names"][j] == regime["joint"] and regime["intervention"] in (1, 2)
         diff = np.nonzero(an[r::regimes][0] != an[0::regimes][0])[0] if len(an) > r else []
         assert all(k == j for k in diff), (r, diff)
     assert 30 < im.mean() < 230, im.mean()

@@ -24,6 +24,13 @@ TEST(InterventionSamplerGolden, ConfigsCarryThePapersNumbers) {
   const auto one = InterventionSampler::load(kDir / "1c_independent.json");
   EXPECT_EQ(one.regime_names().size(), 7u);  // 1 + 2 x joints 2, 4, 6
   EXPECT_EQ(one.regime_names()[5], "do(panda_joint6)=1");
+  ASSERT_EQ(one.regimes().size(), 7u);
+  EXPECT_EQ(one.regimes()[0].joint, -1);
+  EXPECT_EQ(one.regimes()[0].intervention, 0);
+  EXPECT_EQ(one.regimes()[5].joint, 5);  // panda_joint6
+  EXPECT_EQ(one.regimes()[5].intervention, 1);
+  EXPECT_EQ(one.regimes()[2].joint, 1);  // do(panda_joint2)=2
+  EXPECT_EQ(one.regimes()[2].intervention, 2);
   const TruncatedNormal& j6 = one.interventions(joint(one, 6))[0];
   EXPECT_EQ(j6.mu(), 2.25);
   EXPECT_EQ(j6.sigma(), 0.5);

@@ -11,7 +11,10 @@
 ///   anchor  i64 [n]
 /// The manifest's metadata records the format, the full config (rig written out), the
 /// distribution as read, the URDF's file name and SHA-256, the GL renderer (images are exact
-/// for one), the seed, the counts and the camera, joint and regime names. Its SHA-256 is
+/// for one), the seed, the counts and the camera, joint and regime names, and (since
+/// sim_dataset_version 2) "regimes": for each regime {"name", "joint" (a joint name, null
+/// when observational), "joint_index" (into joint_names, or null), "intervention" (1 or 2,
+/// or null)}, so that a reader never parses a regime's name. Its SHA-256 is
 /// the dataset id in every shard marker, so a shard of another dataset (another seed,
 /// config or GL) copied into the directory is redone, never mixed in.
 ///
@@ -35,7 +38,8 @@ namespace ropes::sim {
 /// DIR/generation.json holds the metadata from the first run, so that a rerun can tell
 /// its own unfinished dataset from a different one.
 inline constexpr const char* kGenerationFile = "generation.json";
-inline constexpr int kSimDatasetVersion = 1;
+/// 2: the metadata's "regimes" (version 1 datasets lack it; they still open).
+inline constexpr int kSimDatasetVersion = 2;
 
 struct GenerateOptions {
   std::filesystem::path out;

@@ -47,6 +47,14 @@ class InterventionSampler {
   const std::vector<std::string>& regime_names() const { return regimes_; }
   /// Indices into joint_names() of the intervened joints, in regime order.
   const std::vector<int>& intervened_joints() const { return intervened_; }
+  /// What regime r is, parsed: the intervened joint (an index into joint_names(); -1 for the
+  /// observational regime) and which of its two interventions (1 or 2; 0 when observational).
+  struct Regime {
+    int joint = -1;
+    int intervention = 0;
+  };
+  /// One per regime_names() entry, in the same order.
+  const std::vector<Regime>& regimes() const { return regime_info_; }
 
   /// The configurations of anchor `anchor` under `seed`, one per regime (regime_names()
   /// order), each with one angle per joint. Draws come from PhiloxStream(seed, anchor)
@@ -78,6 +86,7 @@ class InterventionSampler {
   std::optional<TruncatedNormal> sem_noise_;
   std::vector<int> intervened_;
   std::vector<std::string> regimes_;
+  std::vector<Regime> regime_info_;
 };
 
 }  // namespace ropes::sim
