@@ -1,5 +1,7 @@
 #include "ropes_nn/train_step.hpp"
 
+#include <Eigen/Core>
+
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -247,18 +249,23 @@ StepResult train_step(Adam& optimizer, const BatchLoss& loss, const StepOptions&
   result.means = std::move(gradient.means);
   result.samples = gradient.samples;
 
-  // every gradient finite, its norm, clipping; then the rate and the update
+  // every gradient finite (a non-finite value makes its sum of squares non-finite: look for
+  // it only then), its norm, clipping; then the rate and the update
   double squares = 0;
   for (std::size_t p = 0; p < params.size(); ++p) {
     const float* g = total[p].data();
-    for (std::int64_t j = 0; j < total[p].numel(); ++j) {
-      if (!std::isfinite(g[j])) {
-        refuse("the gradient of '" + optimizer.names()[p] + "' is " +
-               (std::isnan(g[j]) ? std::string("nan") : std::to_string(g[j])) + " at element " +
-               std::to_string(j) + " of " + total[p].shape().str());
+    const Eigen::Index n = total[p].numel();
+    const double part = Eigen::Map<const Eigen::VectorXf>(g, n).cast<double>().squaredNorm();
+    if (!std::isfinite(part)) {
+      for (Eigen::Index j = 0; j < n; ++j) {
+        if (!std::isfinite(g[j])) {
+          refuse("the gradient of '" + optimizer.names()[p] + "' is " +
+                 (std::isnan(g[j]) ? std::string("nan") : std::to_string(g[j])) + " at element " +
+                 std::to_string(j) + " of " + total[p].shape().str());
+        }
       }
-      squares += static_cast<double>(g[j]) * g[j];
     }
+    squares += part;
   }
   result.grad_norm = std::sqrt(squares);
   if (options.clip_norm > 0)

@@ -15,7 +15,8 @@
 /// (rank <= 4): u8 values divided by 255 (images in [0, 1]), other dtypes converted; for
 /// every column in `raw_columns` the rows as stored (an NpyArray of the column's dtype).
 ///
-/// Not thread-safe: one thread calls next() and seek(). The reader must outlive the loader.
+/// Not thread-safe: one thread calls next() and seek(). The loader keeps a reference to the
+/// reader: the reader must outlive the loader and stay where it is (not moved from).
 
 #include <cstdint>
 #include <map>
