@@ -37,4 +37,16 @@ std::string describe(const Json& v) {
   return std::string("a JSON ") + v.type_name();
 }
 
+std::string describe_sizes(const Json& v) {
+  if (!v.is_array())
+    return describe(v);
+  std::string out = "[";
+  for (std::size_t i = 0; i < v.size() && i < 8; ++i) {
+    const Json& e = v[i];
+    out += (i ? "," : "") +
+           (e.is_number_unsigned() ? std::to_string(e.get<std::uint64_t>()) : std::string("?"));
+  }
+  return out + (v.size() > 8 ? ",...]" : "]");
+}
+
 }  // namespace ropes::nn::detail

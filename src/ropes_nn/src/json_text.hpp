@@ -16,4 +16,8 @@ std::string parse_json(const std::string& text, nlohmann::json* out);
 // recursion is as deep as the value)
 std::string describe(const nlohmann::json& v);
 
+// the same, but an array is shown as its first 8 sizes ("[2,3,?]", "?" for an entry that is
+// not a non-negative integer): a shape or a pair of offsets
+std::string describe_sizes(const nlohmann::json& v);
+
 }  // namespace ropes::nn::detail

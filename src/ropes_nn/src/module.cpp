@@ -125,19 +125,6 @@ void Module::mark_initialized(const std::string& name) {
   }
 }
 
-std::string Module::first_uninitialized(const std::string& prefix) const {
-  for (const Parameter& p : parameters_) {
-    if (!p.initialized)
-      return prefix + p.name;
-  }
-  for (const auto& [name, child] : children_) {
-    std::string found = child->first_uninitialized(prefix + name + ".");
-    if (!found.empty())
-      return found;
-  }
-  return "";
-}
-
 std::vector<std::string> Module::uninitialized_parameters() const {
   std::vector<std::string> names;
   struct Walker {
@@ -161,9 +148,9 @@ void Module::check_ready(std::size_t inputs) {
   }
   if (verified_)
     return;
-  const std::string missing = first_uninitialized("");
+  const std::vector<std::string> missing = uninitialized_parameters();
   if (!missing.empty()) {
-    throw std::logic_error("Module: parameter '" + missing +
+    throw std::logic_error("Module: parameter '" + missing.front() +
                            "' was never initialised; call initialize(seed) or load weights "
                            "(load_module, load_checkpoint) before calling the module");
   }

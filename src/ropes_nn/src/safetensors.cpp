@@ -37,29 +37,6 @@ const char* dtype_code(DType d) {
   return "?";
 }
 
-// a short description of a value read from a file: never json::dump() on untrusted input,
-// whose recursion a deeply nested value turns into a stack overflow
-std::string describe(const Json& v) {
-  if (v.is_string()) {
-    const std::string& text = v.get_ref<const std::string&>();
-    return "\"" + text.substr(0, 32) + (text.size() > 32 ? "...\"" : "\"");
-  }
-  if (v.is_number_unsigned())
-    return std::to_string(v.get<std::uint64_t>());
-  if (v.is_number_integer())
-    return std::to_string(v.get<std::int64_t>());
-  if (v.is_array()) {
-    std::string out = "[";
-    for (std::size_t i = 0; i < v.size() && i < 8; ++i) {
-      const Json& e = v[i];
-      out += (i ? "," : "") +
-             (e.is_number_unsigned() ? std::to_string(e.get<std::uint64_t>()) : std::string("?"));
-    }
-    return out + (v.size() > 8 ? ",...]" : "]");
-  }
-  return std::string("a JSON ") + v.type_name();
-}
-
 bool parse_dtype(const std::string& code, DType* out) {
   static const std::pair<const char*, DType> kCodes[] = {{"U8", DType::kU8},
                                                          {"I32", DType::kI32},
@@ -173,32 +150,34 @@ Safetensors parse_safetensors(const std::uint8_t* bytes, std::size_t size,
     Entry e{key, {}, 0, 0};
     const Json& dtype = value["dtype"];
     if (!dtype.is_string() || !parse_dtype(dtype.get<std::string>(), &e.array.dtype)) {
-      fail(name, where + " has dtype " + describe(dtype) + "; expected U8, I32, I64, F32 or F64");
+      fail(name,
+           where + " has dtype " + detail::describe(dtype) + "; expected U8, I32, I64, F32 or F64");
     }
     const Json& shape = value["shape"];
     if (!shape.is_array() || shape.size() > static_cast<std::size_t>(kNpyMaxRank)) {
-      fail(name, where + " has shape " + describe(shape) + "; expected a list of at most " +
-                     std::to_string(kNpyMaxRank) + " sizes");
+      fail(name, where + " has shape " + detail::describe_sizes(shape) +
+                     "; expected a list of at most " + std::to_string(kNpyMaxRank) + " sizes");
     }
     for (const Json& d : shape) {
       if (!d.is_number_unsigned())
-        fail(name, where + " has shape " + describe(shape));
+        fail(name, where + " has shape " + detail::describe_sizes(shape));
       e.array.shape.push_back(
           static_cast<std::int64_t>(std::min<std::uint64_t>(d.get<std::uint64_t>(), INT64_MAX)));
     }
     const Json& offsets = value["data_offsets"];
     if (!offsets.is_array() || offsets.size() != 2 || !offsets[0].is_number_unsigned() ||
         !offsets[1].is_number_unsigned()) {
-      fail(name, where + " has data_offsets " + describe(offsets) + "; expected [begin, end]");
+      fail(name, where + " has data_offsets " + detail::describe_sizes(offsets) +
+                     "; expected [begin, end]");
     }
     e.begin = offsets[0].get<std::uint64_t>();
     e.end = offsets[1].get<std::uint64_t>();
     std::uint64_t nbytes = 0;
     if (!checked_byte_count(e.array.dtype, e.array.shape, &nbytes) || e.end < e.begin ||
         e.end - e.begin != nbytes) {
-      fail(name, where + " has data_offsets " + describe(offsets) + " for a " +
-                     dtype_code(e.array.dtype) + " " + describe(shape) + " tensor of " +
-                     std::to_string(nbytes) + " bytes");
+      fail(name, where + " has data_offsets " + detail::describe_sizes(offsets) + " for a " +
+                     dtype_code(e.array.dtype) + " " + detail::describe_sizes(shape) +
+                     " tensor of " + std::to_string(nbytes) + " bytes");
     }
     entries.push_back(std::move(e));
   }

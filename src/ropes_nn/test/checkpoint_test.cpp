@@ -191,8 +191,7 @@ TEST(Checkpoint, WeightsLoadAloneForInferenceWithThePrefix) {
   Adam adam(net->named_parameters(), AdamOptions{1e-3});
   const fs::path path = scratch("infer.safetensors");
   save_checkpoint(path, *net, adam, LrSchedule::constant(1e-3), {});
-  auto fresh = small_net();  // never initialised: a forward would throw
-  Sequential inference;
+  Sequential inference;  // never initialised: a forward throws until the weights load
   inference.add(std::make_shared<Conv2d>(1, 4, 3, 2), "conv");
   inference.add(std::make_shared<ReLU>());
   inference.add(std::make_shared<ConvTranspose2d>(4, 1, 4, 2), "up");
@@ -332,6 +331,40 @@ TEST(Checkpoint, RefusesFilesThatDoNotMatchAndChangesNothing) {
                                       "\"kind\":\"constant\",\"lr\":-1.0")),
                   "metadata[\"ropes.checkpoint\"].schedule.lr is -1.0; expected a finite rate > 0");
   EXPECT_CONTAINS(with_state(replaced("\"beta1\":0.9", "\"beta1\":1.5")), ".adam: ");
+
+  EXPECT_CONTAINS(with_state(replaced("\"seed\":1", "\"seed\":-1")),
+                  "metadata[\"ropes.checkpoint\"].seed is -1; expected an integer >= 0");
+  // tensors that belong to no part of the state
+  Safetensors foreign = file;
+  NpyArray extra;
+  extra.dtype = DType::kF32;
+  extra.data.resize(4);
+  foreign.tensors.emplace_back("ema.conv.weight", extra);
+  const fs::path foreign_path = scratch("foreign.safetensors");
+  write_safetensors(foreign_path, foreign);
+  EXPECT_CONTAINS(error_loading(foreign_path, *target, target_adam),
+                  "holds tensor 'ema.conv.weight', which is neither model.* nor optimizer.*");
+  // a parameter's update count beyond the checkpoint's step
+  Safetensors counted = file;
+  for (auto& [key, array] : counted.tensors) {
+    if (key == "optimizer.step.conv.weight") {
+      const std::int64_t too_many = 3;
+      std::memcpy(array.data.data(), &too_many, sizeof(too_many));
+    }
+  }
+  const fs::path counted_path = scratch("counted.safetensors");
+  write_safetensors(counted_path, counted);
+  EXPECT_CONTAINS(
+      error_loading(counted_path, *target, target_adam),
+      "tensor 'optimizer.step.conv.weight' is 3; expected 0..2 (the checkpoint's step)");
+  // not strict still refuses a mis-shaped tensor
+  auto wider = small_net(6);
+  try {
+    load_module(*wider, good, {"model.", false});
+    ADD_FAILURE() << "a mis-shaped tensor loaded";
+  } catch (const FileFormatError& e) {
+    EXPECT_CONTAINS(e.what(), "tensor 'model.conv.weight' is f32 [4, 1, 3, 3]");
+  }
 
   // after all of that, nothing changed
   EXPECT_EQ(target->parameters()[0].to_vector(), weights);

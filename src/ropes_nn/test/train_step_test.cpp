@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <stdexcept>
@@ -199,21 +200,35 @@ TEST(TrainStep, AppliesTheScheduleRateAndReportsTheStep) {
   EXPECT_DOUBLE_EQ(adam.lr(), 1e-3);
 }
 
+// With eps far above |m| / sqrt(v), Adam's update is lr g / eps: linear in the gradient, so
+// clipping to a tenth of the norm shows as a tenth of the step
 TEST(TrainStep, ClipsToTheGivenNormAndReportsTheNormBefore) {
-  SparsityProblem problem;
-  const std::vector<Tensor> params = problem.net.parameters();
-  const BatchGradient g = batch_gradient(params, problem.loss(4), 4);
+  SparsityProblem clipped, plain;
+  const BatchGradient g = batch_gradient(clipped.net.parameters(), clipped.loss(4), 4);
   double norm = 0;
   for (const Tensor& t : g.grads)
     for (std::int64_t j = 0; j < t.numel(); ++j)
       norm += static_cast<double>(t.data()[j]) * t.data()[j];
   norm = std::sqrt(norm);
-  // plain SGD through Adam is not observable; compare the step's figure with ours
-  Adam adam(problem.net.named_parameters(), AdamOptions{1e-3});
+  const AdamOptions linear{1e3, 0.0, 0.0, 1e6};  // a step of 1e-3 g: well above float rounding
+  Adam adam_clipped(clipped.net.named_parameters(), linear);
+  Adam adam_plain(plain.net.named_parameters(), linear);
+  const std::vector<float> before = clipped.net.parameters()[0].to_vector();
   StepOptions options;
   options.micro_batches = 4;
   options.clip_norm = norm / 10;
-  EXPECT_NEAR(train_step(adam, problem.loss(4), options).grad_norm, norm, 1e-6 * norm);
+  EXPECT_NEAR(train_step(adam_clipped, clipped.loss(4), options).grad_norm, norm, 1e-6 * norm);
+  options.clip_norm = 0;
+  EXPECT_NEAR(train_step(adam_plain, plain.loss(4), options).grad_norm, norm, 1e-6 * norm);
+  const std::vector<float> after_clipped = clipped.net.parameters()[0].to_vector();
+  const std::vector<float> after_plain = plain.net.parameters()[0].to_vector();
+  double moved_clipped = 0, moved_plain = 0;
+  for (std::size_t j = 0; j < before.size(); ++j) {
+    moved_clipped += std::abs(after_clipped[j] - before[j]);
+    moved_plain += std::abs(after_plain[j] - before[j]);
+  }
+  ASSERT_GT(moved_plain, 0);
+  EXPECT_NEAR(moved_clipped / moved_plain, 0.1, 1e-3);
 }
 
 TEST(TrainStep, RefusesANonFiniteGradientNamingTheParameterAndChangesNothing) {
@@ -246,6 +261,40 @@ TEST(TrainStep, RefusesANonFiniteGradientNamingTheParameterAndChangesNothing) {
     }
   }
   EXPECT_EQ(net.parameters()[0].item(), 0.0f);
+  EXPECT_EQ(adam.steps(), 0);
+}
+
+TEST(Adam, RefusesUnnamedOrRepeatedParametersAndBadRates) {
+  const Tensor a = Tensor::zeros(Shape{2}, true), b = Tensor::zeros(Shape{3}, true);
+  auto error = [](const std::function<void()>& f) {
+    try {
+      f();
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_CONTAINS(error([&] {
+                    Adam({{"w", a}, {"w", b}});
+                  }),
+                  "Adam: parameter 1 is named 'w'; expected a distinct, non-empty name");
+  EXPECT_CONTAINS(error([&] { Adam({{"", a}}); }), "parameter 0 is named ''");
+  EXPECT_CONTAINS(error([&] {
+                    Adam({{"w", Tensor::zeros(Shape{2})}});
+                  }),
+                  "Adam: parameter 'w' is not a leaf tensor that requires grad");
+  Adam adam({{"w", a}});
+  EXPECT_CONTAINS(error([&] { adam.set_lr(-1); }), "Adam::set_lr: -1.000000; expected a finite");
+  EXPECT_CONTAINS(error([&] { adam.set_lr(std::nan("")); }), "expected a finite rate >= 0");
+  adam.set_lr(0);  // the end of a schedule
+  EXPECT_EQ(adam.lr(), 0.0);
+  EXPECT_CONTAINS(error([&] { adam.set_param_steps(0, -2); }), "'w' gets -2 steps");
+  EXPECT_CONTAINS(error([&] {
+                    adam.set_options(AdamOptions{1e-3, 1.0});
+                  }),
+                  "Adam::set_options: lr=0.001000 beta1=1.000000");
+  EXPECT_CONTAINS(error([&] { adam.step({Tensor::zeros(Shape{3})}); }),
+                  "gradient of 'w' has shape [3]; its parameter has [2]");
   EXPECT_EQ(adam.steps(), 0);
 }
 

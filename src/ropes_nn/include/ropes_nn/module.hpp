@@ -107,8 +107,6 @@ class Module {
   void add_child(const std::string& name, std::shared_ptr<Module> module);
   void initialize_tree(std::uint64_t seed, const std::string& scope, const std::string& prefix);
   void check_ready(std::size_t inputs);
-  // the first uninitialised parameter's dotted path below this module, or ""
-  std::string first_uninitialized(const std::string& prefix) const;
   bool mark(const std::string& name);
 
   std::vector<Parameter> parameters_;
