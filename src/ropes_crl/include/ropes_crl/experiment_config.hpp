@@ -1,0 +1,108 @@
+#pragma once
+/// @file experiment_config.hpp
+/// An experiment: which dataset it expects, the three networks and how each stage trains.
+/// Read from a JSON file (the installed ones: share/ropes_crl/configs/*.json, one per paper
+/// setting x preset); every field is required, an unknown key is an error, and the error
+/// names the file, the field, the value and what was expected.
+#include "ropes_crl/networks.hpp"
+#include "ropes_crl/score_sparsity.hpp"
+
+#include <ropes_nn/lr_schedule.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace ropes::crl {
+
+/// How one stage's optimiser runs: Adam at `lr`, a schedule, steps, batch, micro-batches.
+struct OptimizerConfig {
+  double lr = 1e-3;
+  std::string schedule = "constant";  ///< "constant" or "cosine" (to final_lr, after warmup)
+  double final_lr = 0.0;
+  std::int64_t warmup = 0;
+  double clip_norm = 0.0;  ///< 0: no clipping
+  /// The ropes_nn schedule over `steps` updates.
+  nn::LrSchedule make_schedule(std::int64_t steps) const;
+};
+
+/// Stage 1: AE1 on every camera image of the dataset, MSE.
+struct Ae1Training {
+  std::int64_t batch_size = 32;  ///< images a step (a sample of C cameras is C images)
+  std::int64_t steps = 0;        ///< from "steps", or "epochs" x images / batch_size
+  std::int64_t micro_batch = 32;
+  OptimizerConfig optimizer;
+};
+
+/// Stage 2: one LDR per intervened joint, intervention 1 (label 0) against 2 (label 1),
+/// early stopping on the held-out anchors.
+struct LdrTraining {
+  std::int64_t batch_size = 64;
+  std::int64_t max_epochs = 30;
+  std::int64_t patience = 5;       ///< epochs without a better held-out loss before stopping
+  double held_out_fraction = 0.2;  ///< of the anchors, drawn by seed
+  OptimizerConfig optimizer;
+};
+
+/// Stage 3: AE2, reconstruction + lambda * sparsity.
+struct Ae2Training {
+  std::string mode = "per_joint";  ///< "per_joint" (one AE2 a joint) or "joint" (one for all)
+  double lambda = 1.0;
+  SparsityNorm norm = SparsityNorm::kL2Squared;
+  std::string score_normalization = "none";  ///< "none" or "unit" (|v| = 1 per sample)
+  std::string score_samples = "intervened";  ///< "intervened" (joint i's samples) or "all"
+  std::int64_t batch_size = 64;              ///< reconstruction samples a step (all regimes)
+  std::int64_t sparsity_batch_size = 64;     ///< per joint, a step
+  std::int64_t steps = 4000;
+  std::int64_t micro_batch = 128;  ///< rows of one micro-batch (reconstruction + sparsity)
+  OptimizerConfig optimizer;
+  bool lambda0_baseline = true;  ///< also train the lambda = 0 autoencoder (a baseline)
+};
+
+struct ExperimentConfig {
+  std::string name;                     ///< e.g. "1c-small"
+  std::string preset;                   ///< "tiny", "small" or "paper"
+  std::string source;                   ///< where its numbers come from
+  std::vector<std::string> deviations;  ///< each way it departs from the paper's appendix
+
+  // the dataset it expects
+  std::string dataset_config;  ///< the ropes-generate config that makes it (e.g. "small-1c")
+  std::int64_t cameras = 1;
+  std::int64_t image_size = 128;
+  std::vector<std::string> joints;  ///< intervened joints, in latent order
+
+  Ae1Spec ae1;
+  Ae1Training ae1_training;
+  LdrSpec ldr;
+  LdrTraining ldr_training;
+  Ae2Spec ae2;
+  Ae2Training ae2_training;
+
+  std::int64_t log_every = 50;
+  std::int64_t checkpoint_every = 200;
+
+  /// The code Y a sample gives: [cameras * ae1.code_channels, 8, 8].
+  std::int64_t code_channels() const { return cameras * ae1.code_channels; }
+  /// Everything above as JSON (what run.json and the weight files record).
+  nlohmann::json to_json() const;
+  /// Parses and validates; `where` names the source in errors. Throws std::invalid_argument.
+  static ExperimentConfig from_json(const nlohmann::json& j, const std::string& where);
+  /// With Ae1Training::steps computed from "epochs" when the config gives epochs.
+  void resolve_epochs(std::int64_t dataset_images);
+
+  nlohmann::json raw;  ///< the file as read (with "epochs" if given)
+};
+
+/// The installed experiment configs' directory (share/ropes_crl/configs next to the
+/// library's installed prefix, or the source tree's in a build tree).
+std::filesystem::path installed_config_dir();
+
+/// Reads `name_or_path`: a file path, or the name of an installed config ("1c-small").
+/// Throws std::invalid_argument naming the file and the field for anything invalid, and
+/// listing the installed names when a name is not found.
+ExperimentConfig load_experiment_config(const std::string& name_or_path);
+
+}  // namespace ropes::crl

@@ -1,0 +1,138 @@
+#pragma once
+/// @file networks.hpp
+/// The three networks of ROPES (paper, appendix "Architecture Details", tables
+/// "Autoencoder1", "Autoencoder 2" and "LDR"), parametrised so that one code path builds the
+/// `paper` preset exactly and the smaller presets this CPU can train.
+///
+/// Shapes (NCHW):
+///   Ae1:  image [N, 1, S, S]  -> code [N, K, S/2^stages/stem, ...] = [N, K, 8, 8] -> [N, 1, S, S]
+///   Ldr:  y [N, C, 8, 8] -> logit [N]
+///   Ae2:  y [N, C, 8, 8] -> z [N, d] -> y_hat [N, C, 8, 8]
+/// Each spec has to_json()/from_json() so that a weight file's metadata rebuilds its network.
+#include <ropes_nn/layers.hpp>
+#include <ropes_nn/module.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace ropes::crl {
+
+using nn::Tensor;
+
+/// AE1, the image autoencoder. Encoder: an optional stem, then per stage
+/// Conv3x3(c -> widths[s]), blocks x ResBlockGN(widths[s]), Conv3x3 stride 2
+/// (-> widths[s], or code_channels after the last stage), ReLU. Decoder: per stage in reverse
+/// Conv3x3(c -> widths[s]), blocks x ResBlockGN, ConvTranspose4x4 stride 2, ReLU; then
+/// Conv3x3(-> 1) (stem "none") or ConvTranspose stem x stem stride stem (stem "patchify"),
+/// ReLU. The paper: stem none, widths 64/128/256/512, 2 blocks, image 128, code 8x8x1.
+struct Ae1Spec {
+  std::int64_t image_size = 128;
+  std::string stem = "none";  ///< "none" or "patchify" (a k x k stride-k conv, k = stem_factor)
+  int stem_factor = 4;        ///< patchify only: 128 -> 32 for 4
+  std::int64_t stem_channels = 16;
+  std::vector<std::int64_t> widths = {64, 128, 256, 512};
+  int blocks_per_stage = 2;
+  std::int64_t code_channels = 1;
+
+  /// The code's side: image_size / (stem factor) / 2^stages.
+  std::int64_t code_size() const;
+  /// What is wrong with the spec ("" when nothing), naming the field and the value.
+  std::string problem() const;
+  nlohmann::json to_json() const;
+  /// Throws std::invalid_argument naming the field for a missing or invalid value.
+  static Ae1Spec from_json(const nlohmann::json& j);
+};
+
+class Ae1 : public nn::Module {
+ public:
+  explicit Ae1(const Ae1Spec& spec);
+  const Ae1Spec& spec() const { return spec_; }
+  /// [N, 1, S, S] -> [N, code_channels, 8, 8]
+  Tensor encode(const Tensor& image);
+  /// [N, code_channels, 8, 8] -> [N, 1, S, S]
+  Tensor decode(const Tensor& code);
+
+ protected:
+  Tensor forward(const Tensor& image) override { return decode(encode(image)); }
+
+ private:
+  Ae1Spec spec_;
+  std::shared_ptr<nn::Sequential> encoder_, decoder_;
+};
+
+/// LDR, the log-density-ratio classifier: three valid Conv3x3 + ReLU (widths), flatten, Dense
+/// hidden + ReLU, Dense 1. The paper: widths 32/64/128, hidden 128, input 8x8xC.
+struct LdrSpec {
+  std::int64_t in_channels = 1;
+  std::int64_t input_size = 8;
+  std::vector<std::int64_t> widths = {32, 64, 128};
+  std::int64_t hidden = 128;
+
+  std::string problem() const;
+  nlohmann::json to_json() const;
+  static LdrSpec from_json(const nlohmann::json& j);
+};
+
+class Ldr : public nn::Module {
+ public:
+  explicit Ldr(const LdrSpec& spec);
+  const LdrSpec& spec() const { return spec_; }
+
+ protected:
+  /// y [N, C, 8, 8] -> logit [N]
+  Tensor forward(const Tensor& y) override;
+
+ private:
+  LdrSpec spec_;
+  std::shared_ptr<nn::Sequential> features_;
+  std::shared_ptr<nn::Dense> hidden_, out_;
+};
+
+/// AE2, the disentangling autoencoder on the codes Y.
+///   kind "conv" (the paper): per stage Conv3x3(c -> widths[s]), blocks x ResBlockGN,
+///     Conv3x3 stride 2, ReLU (8 -> 4 -> 2 -> 1); Dense(widths.back() -> d); decoder
+///     Dense(d -> widths.back()) + ReLU, reshape to 1x1, per stage of decoder_widths
+///     Conv3x3, blocks x ResBlockGN, ConvTranspose4x4 stride 2, ReLU; Conv3x3(-> C), ReLU.
+///     The paper: widths 64/128/256, decoder widths 512/256/128, 2 blocks.
+///   kind "mlp": flatten, Dense + activation per hidden width, Dense(-> d); decoder the
+///     mirror, Dense(-> C*8*8) with no activation, reshaped to [N, C, 8, 8].
+struct Ae2Spec {
+  std::string kind = "conv";  ///< "conv" or "mlp"
+  std::int64_t in_channels = 1;
+  std::int64_t input_size = 8;
+  std::int64_t latent_dim = 3;
+  std::vector<std::int64_t> widths = {64, 128, 256};           ///< conv encoder / mlp hidden
+  std::vector<std::int64_t> decoder_widths = {512, 256, 128};  ///< conv only
+  int blocks_per_stage = 2;                                    ///< conv only
+  std::string activation = "relu";  ///< mlp only: "relu" or "silu" (x * sigmoid(x))
+
+  std::string problem() const;
+  nlohmann::json to_json() const;
+  static Ae2Spec from_json(const nlohmann::json& j);
+};
+
+class Ae2 : public nn::Module {
+ public:
+  explicit Ae2(const Ae2Spec& spec);
+  const Ae2Spec& spec() const { return spec_; }
+  /// y [N, C, 8, 8] -> z [N, d]
+  Tensor encode(const Tensor& y);
+  /// z [N, d] -> y_hat [N, C, 8, 8]
+  Tensor decode(const Tensor& z);
+
+ protected:
+  Tensor forward(const Tensor& y) override { return decode(encode(y)); }
+
+ private:
+  Tensor activate(const Tensor& x) const;
+  Ae2Spec spec_;
+  std::shared_ptr<nn::Sequential> encoder_, decoder_;
+  std::vector<std::shared_ptr<nn::Dense>> mlp_encoder_, mlp_decoder_;
+  std::shared_ptr<nn::Dense> to_latent_, from_latent_;
+};
+
+}  // namespace ropes::crl

@@ -1,0 +1,49 @@
+#pragma once
+/// @file sparsity_objective.hpp
+/// The AE2 objective of ROPES in autodiff form (paper, eq. "loss_function"):
+///   L = E_all || y - g(h(y)) ||^2 / (C*8*8)  +  lambda * sum_k || E_k |J_g(z)^T v_k(y)| - e_{t_k}
+///   ||
+/// with z = h(y), v_k the score differences of joint k (the frozen LDR_k's input gradient)
+/// and E_k the mean over joint k's samples; t_k is the latent that estimates joint k. The
+/// norm is squared L2 (the paper) or L1. The batch means sit inside the norm, so the loss is
+/// declared to ropes_nn's train_step as an outer function of batch means: a step over any
+/// number of micro-batches equals the whole-batch step.
+#include "ropes_crl/networks.hpp"
+#include "ropes_crl/score_sparsity.hpp"
+
+#include <ropes_nn/train_step.hpp>
+
+#include <vector>
+
+namespace ropes::crl {
+
+/// J_g(z)^T v for each sample: z = ae2.encode(y), y_hat = ae2.decode(z), the
+/// vector-Jacobian product of y_hat with v at z. y, v: [n, C, 8, 8] -> [n, d]. With
+/// `create_graph` the result can be differentiated (the training step needs it).
+Tensor latent_score_differences(Ae2& ae2, const Tensor& y, const Tensor& v, bool create_graph);
+
+/// v with each sample scaled to unit L2 length (samples of length 0 stay 0). [n, ...].
+Tensor unit_length_rows(const Tensor& v);
+
+/// || mean_abs - e_target ||, squared L2 or L1. mean_abs: [d]; 0 <= target < d.
+Tensor sparsity_penalty(const Tensor& mean_abs, std::int64_t target, SparsityNorm norm);
+
+/// One AE2 training batch: reconstruction samples and, per sparsity term, samples with their
+/// score differences.
+struct Ae2Batch {
+  Tensor reconstruction;              ///< y [n_r, C, 8, 8]
+  std::vector<Tensor> term_codes;     ///< y [n_k, C, 8, 8] per term
+  std::vector<Tensor> term_scores;    ///< v [n_k, C, 8, 8] per term
+  std::vector<std::int64_t> targets;  ///< t_k per term
+};
+
+/// The objective over `batch` split into micro-batches of at most `micro_batch` rows (all
+/// sets split into the same number of parts). Statistic 0 is the reconstruction error,
+/// statistic 1 + k is |J_g^T v_k| (its mean is row k of the sparsity matrix). With
+/// lambda == 0 no sparsity statistic is computed and the loss is affine. `*micro_batches`
+/// receives the number of parts (StepOptions::micro_batches). The returned loss refers to
+/// `ae2` and `batch`: both must outlive it.
+nn::BatchLoss ae2_batch_loss(Ae2& ae2, const Ae2Batch& batch, double lambda, SparsityNorm norm,
+                             std::int64_t micro_batch, std::size_t* micro_batches);
+
+}  // namespace ropes::crl

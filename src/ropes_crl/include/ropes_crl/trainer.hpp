@@ -1,0 +1,53 @@
+#pragma once
+/// @file trainer.hpp
+/// The three stages of ROPES on a dataset directory, into a run directory, resumable.
+///
+/// Run directory (every file written under a temporary name and renamed):
+///   run.json                    config, dataset id, seed, threads, versions, per-stage wall
+///                               time, LDR accuracies against Bayes, the sparsity matrices
+///   metrics.jsonl               one JSON object per logged step (stage, losses, rates, rows
+///                               of the sparsity matrix, LDR accuracy)
+///   ae1.safetensors             AE1 weights; metadata "ropes.network" = {"kind": "ae1",
+///                               "spec": ...} and "ropes.config"
+///   codes.npy                   Y = E1(x) of every dataset row, f32 [rows, C, 8, 8]
+///   ldr.<joint>.safetensors     the early-stopped LDR of each intervened joint
+///   ae2.<model>.safetensors     AE2 weights: per_joint mode one model per joint (<model> =
+///                               the joint's name), joint mode one ("joint"), and the
+///                               lambda = 0 baseline ("lambda0") when the config asks for it
+///   *.checkpoint.safetensors    the state of a stage in progress (removed when it finishes)
+/// A run killed at any point resumes when started again with the same arguments: finished
+/// stages are kept, AE1 and AE2 continue from their last checkpoint (same seed and thread
+/// count: the same bytes as a run never killed), an LDR restarts its joint (seconds).
+#include "ropes_crl/experiment_config.hpp"
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <string>
+
+namespace ropes::crl {
+
+struct TrainOptions {
+  std::uint64_t seed = 0;
+  int threads = 1;
+  /// true: a one-line progress bar on stderr (for a terminal); false: a log line every
+  /// log_every steps.
+  bool progress_bar = false;
+  /// Test hook: called after each checkpoint is written with (stage, step); unset in normal
+  /// use.
+  std::function<void(const std::string&, std::int64_t)> on_checkpoint;
+};
+
+/// Runs (or resumes) every stage of `config` on the dataset in `data_dir` into `run_dir`.
+/// Throws std::invalid_argument, before writing anything, when the dataset does not match
+/// the config (cameras, image size, a joint without both interventions, missing columns) or
+/// `run_dir` holds a run of another config, dataset, seed or thread count; std::runtime_error
+/// naming the stage and step when a loss or gradient is not finite (the last checkpoint is
+/// kept); FileFormatError for unreadable inputs.
+void train(const ExperimentConfig& config, const std::filesystem::path& data_dir,
+           const std::filesystem::path& run_dir, const TrainOptions& options);
+
+/// The version of ropes_crl ("0.1.0").
+const char* ropes_crl_version();
+
+}  // namespace ropes::crl

@@ -1,0 +1,71 @@
+#include "ropes_crl/bayes_accuracy.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <vector>
+
+#include "json_fields.hpp"
+
+namespace ropes::crl {
+
+namespace {
+void check(const TruncatedNormal& d) {
+  if (!(d.std > 0) || !(d.lower < d.upper) || !std::isfinite(d.mean))
+    throw std::invalid_argument("bayes_accuracy: expected std > 0 and lower < upper, got mean " +
+                                std::to_string(d.mean) + ", std " + std::to_string(d.std) + ", [" +
+                                std::to_string(d.lower) + ", " + std::to_string(d.upper) + "]");
+}
+double normal_cdf(double x) {
+  return 0.5 * std::erfc(-x / std::sqrt(2.0));
+}
+}  // namespace
+
+TruncatedNormal TruncatedNormal::from_json(const nlohmann::json& j, const std::string& where) {
+  TruncatedNormal d;
+  d.mean = detail::get_double(j, where, "mean");
+  d.std = detail::get_double(j, where, "std");
+  d.lower = detail::get_double(j, where, "lower");
+  d.upper = detail::get_double(j, where, "upper");
+  try {
+    check(d);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(where + ": " + e.what());
+  }
+  return d;
+}
+
+double TruncatedNormal::pdf(double x) const {
+  if (x < lower || x > upper)
+    return 0.0;
+  const double mass = normal_cdf((upper - mean) / std) - normal_cdf((lower - mean) / std);
+  const double u = (x - mean) / std;
+  return std::exp(-0.5 * u * u) / (std * std::sqrt(2.0 * M_PI) * mass);
+}
+
+double bayes_accuracy(const TruncatedNormal& p, const TruncatedNormal& q) {
+  check(p);
+  check(q);
+  // composite Simpson on each piece between the supports' ends (the densities jump there)
+  std::vector<double> cuts = {p.lower, p.upper, q.lower, q.upper};
+  std::sort(cuts.begin(), cuts.end());
+  const int n = 20000;
+  double total = 0;
+  for (std::size_t c = 0; c + 1 < cuts.size(); ++c) {
+    const double a = cuts[c], b = cuts[c + 1];
+    if (!(b > a))
+      continue;
+    // evaluate just inside the piece so that a jump at its ends is not sampled
+    const double h = (b - a) / n, inset = 1e-12 * (b - a);
+    double s = 0;
+    for (int i = 0; i <= n; ++i) {
+      const double x = i == 0 ? a + inset : (i == n ? b - inset : a + h * i);
+      const double w = (i == 0 || i == n) ? 1 : (i % 2 == 1 ? 4 : 2);
+      s += w * std::max(p.pdf(x), q.pdf(x));
+    }
+    total += s * h / 3.0;
+  }
+  return 0.5 * total;
+}
+
+}  // namespace ropes::crl

@@ -1,0 +1,210 @@
+#include "ropes_crl/estimator.hpp"
+
+#include <ropes_nn/checkpoint.hpp>
+#include <ropes_nn/npy.hpp>
+#include <ropes_nn/ops.hpp>
+
+#include <stdexcept>
+
+#include "json_fields.hpp"
+#include "run_files.hpp"
+
+namespace ropes::crl {
+
+namespace fs = std::filesystem;
+using nn::Shape;
+
+nlohmann::json Calibration::to_json() const {
+  return {{"joints", joints}, {"scale", scale}, {"offset", offset}};
+}
+
+Calibration Calibration::from_json(const nlohmann::json& j) {
+  Calibration c;
+  c.joints = detail::get_strings(j, "calibration", "joints");
+  for (const char* key : {"scale", "offset"}) {
+    const nlohmann::json& v = detail::field(j, "calibration", key);
+    std::vector<double>& out = std::string(key) == "scale" ? c.scale : c.offset;
+    if (!v.is_array() || v.size() != c.joints.size())
+      throw std::invalid_argument(std::string("calibration.") + key + ": expected " +
+                                  std::to_string(c.joints.size()) + " numbers, got " + v.dump());
+    for (const nlohmann::json& e : v) {
+      if (!e.is_number())
+        throw std::invalid_argument(std::string("calibration.") + key + ": expected numbers, got " +
+                                    v.dump());
+      out.push_back(e.get<double>());
+    }
+  }
+  return c;
+}
+
+struct Estimator::State {
+  ExperimentConfig config;
+  std::unique_ptr<Ae1> ae1;
+  std::vector<std::unique_ptr<Ae2>> ae2;  // per_joint: one a joint; joint: one
+  std::unique_ptr<Ae2> lambda0;
+  std::vector<std::unique_ptr<Ldr>> ldr;
+  bool calibrated = false;
+  Calibration calibration;
+};
+
+Estimator::Estimator(std::unique_ptr<State> state) : state_(std::move(state)) {}
+Estimator::Estimator(Estimator&&) noexcept = default;
+Estimator& Estimator::operator=(Estimator&&) noexcept = default;
+Estimator::~Estimator() = default;
+
+namespace {
+// loads `path` into `net`, strictly, with the file named in every error
+template <class Net>
+void load_weights(Net& net, const fs::path& path) {
+  if (!fs::exists(path))
+    throw nn::FileFormatError(path.string() + ": missing; the run is incomplete");
+  nn::load_module(net, path);
+}
+}  // namespace
+
+Estimator Estimator::load(const fs::path& run_dir) {
+  const nlohmann::json run = detail::read_json_file(run_dir / "run.json");
+  if (run.value("format", "") != detail::kRunFormat)
+    throw nn::FileFormatError((run_dir / "run.json").string() + ": not a ropes run");
+  if (!run.value("complete", false))
+    throw nn::FileFormatError((run_dir / "run.json").string() +
+                              ": the run has not finished training; run ropes-train again "
+                              "with the same arguments to resume it");
+  auto s = std::make_unique<State>();
+  try {
+    s->config = ExperimentConfig::from_json(run.at("config"), (run_dir / "run.json").string());
+  } catch (const std::exception& e) {
+    throw nn::FileFormatError(e.what());
+  }
+  const ExperimentConfig& c = s->config;
+  s->ae1 = std::make_unique<Ae1>(c.ae1);
+  load_weights(*s->ae1, detail::ae1_file(run_dir));
+  if (c.ae2_training.mode == "per_joint") {
+    for (const std::string& joint : c.joints) {
+      s->ae2.push_back(std::make_unique<Ae2>(c.ae2));
+      load_weights(*s->ae2.back(), detail::ae2_file(run_dir, joint));
+    }
+  } else {
+    s->ae2.push_back(std::make_unique<Ae2>(c.ae2));
+    load_weights(*s->ae2.back(), detail::ae2_file(run_dir, "joint"));
+  }
+  if (c.ae2_training.lambda0_baseline) {
+    s->lambda0 = std::make_unique<Ae2>(c.ae2);
+    load_weights(*s->lambda0, detail::ae2_file(run_dir, "lambda0"));
+  }
+  for (const std::string& joint : c.joints) {
+    s->ldr.push_back(std::make_unique<Ldr>(c.ldr));
+    load_weights(*s->ldr.back(), detail::ldr_file(run_dir, joint));
+  }
+  return Estimator(std::move(s));
+}
+
+const ExperimentConfig& Estimator::config() const {
+  return state_->config;
+}
+
+Tensor Estimator::codes(const Tensor& images) {
+  const ExperimentConfig& c = state_->config;
+  if (images.rank() != 4 || images.shape()[1] != c.cameras || images.shape()[2] != c.image_size ||
+      images.shape()[3] != c.image_size)
+    throw std::invalid_argument("Estimator::codes: images are " + images.shape().str() +
+                                ", expected [n, " + std::to_string(c.cameras) + ", " +
+                                std::to_string(c.image_size) + ", " + std::to_string(c.image_size) +
+                                "]");
+  nn::GradModeGuard no_grad(false);
+  const std::int64_t n = images.shape()[0];
+  const Tensor y =
+      state_->ae1->encode(nn::reshape(images, Shape{n * c.cameras, 1, c.image_size, c.image_size}));
+  const std::int64_t side = y.shape()[2];
+  return nn::reshape(y, Shape{n, c.code_channels(), side, side});
+}
+
+namespace {
+// column k of [n, d]
+Tensor column(const Tensor& z, std::int64_t k) {
+  return nn::slice(z, 1, k, k + 1);
+}
+}  // namespace
+
+Tensor Estimator::latents_from_codes(const Tensor& y) {
+  nn::GradModeGuard no_grad(false);
+  std::vector<Tensor> cols;
+  for (std::size_t k = 0; k < joints().size(); ++k)
+    cols.push_back(column(full_latents_from_codes(y, k), static_cast<std::int64_t>(k)));
+  return nn::concat(cols, 1);
+}
+
+Tensor Estimator::full_latents_from_codes(const Tensor& y, std::size_t joint) {
+  if (joint >= joints().size())
+    throw std::invalid_argument("Estimator::full_latents_from_codes: joint " +
+                                std::to_string(joint) + " of " + std::to_string(joints().size()));
+  nn::GradModeGuard no_grad(false);
+  Ae2& net = *state_->ae2[state_->ae2.size() == 1 ? 0 : joint];
+  return net.encode(y);
+}
+
+Tensor Estimator::latents(const Tensor& images) {
+  return latents_from_codes(codes(images));
+}
+
+Tensor Estimator::ldr_logits_from_codes(const Tensor& y) {
+  nn::GradModeGuard no_grad(false);
+  std::vector<Tensor> cols;
+  for (const auto& ldr : state_->ldr)
+    cols.push_back(nn::reshape((*ldr)(y), Shape{y.shape()[0], 1}));
+  return nn::concat(cols, 1);
+}
+
+bool Estimator::has_lambda0() const {
+  return state_->lambda0 != nullptr;
+}
+
+Tensor Estimator::lambda0_latents_from_codes(const Tensor& y) {
+  if (!state_->lambda0)
+    throw std::logic_error("Estimator: this run trained no lambda = 0 baseline");
+  nn::GradModeGuard no_grad(false);
+  const Tensor z = state_->lambda0->encode(y);
+  return nn::slice(z, 1, 0, static_cast<std::int64_t>(joints().size()));
+}
+
+void Estimator::set_calibration(const Calibration& calibration) {
+  if (calibration.joints != joints())
+    throw std::invalid_argument(
+        "Estimator::set_calibration: the calibration is for other "
+        "joints than this run's");
+  state_->calibration = calibration;
+  state_->calibrated = true;
+}
+
+bool Estimator::calibrated() const {
+  return state_->calibrated;
+}
+
+Tensor Estimator::angles_from_latents(const Tensor& latents) const {
+  if (!state_->calibrated)
+    throw std::logic_error("Estimator::angles_from_latents: no calibration was set");
+  const std::int64_t n = latents.shape()[0], j = static_cast<std::int64_t>(joints().size());
+  std::vector<float> out(static_cast<std::size_t>(n * j));
+  for (std::int64_t i = 0; i < n; ++i)
+    for (std::int64_t k = 0; k < j; ++k)
+      out[static_cast<std::size_t>(i * j + k)] = static_cast<float>(
+          state_->calibration.scale[static_cast<std::size_t>(k)] * latents.data()[i * j + k] +
+          state_->calibration.offset[static_cast<std::size_t>(k)]);
+  return Tensor(Shape{n, j}, out);
+}
+
+void Estimator::estimate_frame(const std::uint8_t* pixels, float* latents_out, float* angles_out) {
+  const ExperimentConfig& c = state_->config;
+  const std::int64_t count = c.cameras * c.image_size * c.image_size;
+  nn::Buffer x(static_cast<std::size_t>(count));
+  for (std::int64_t i = 0; i < count; ++i)
+    x[static_cast<std::size_t>(i)] = static_cast<float>(pixels[i]) / 255.0f;
+  const Tensor z = latents(Tensor(Shape{1, c.cameras, c.image_size, c.image_size}, std::move(x)));
+  std::copy_n(z.data(), z.numel(), latents_out);
+  if (angles_out != nullptr && state_->calibrated) {
+    const Tensor a = angles_from_latents(z);
+    std::copy_n(a.data(), a.numel(), angles_out);
+  }
+}
+
+}  // namespace ropes::crl

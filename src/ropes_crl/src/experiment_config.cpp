@@ -1,0 +1,246 @@
+#include "ropes_crl/experiment_config.hpp"
+
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+#include "json_fields.hpp"
+
+namespace ropes::crl {
+
+namespace fs = std::filesystem;
+using namespace detail;
+
+namespace {
+
+OptimizerConfig parse_optimizer(const nlohmann::json& j, const std::string& where) {
+  reject_unknown_keys(j, where, {"lr", "schedule", "final_lr", "warmup", "clip_norm"});
+  OptimizerConfig o;
+  o.lr = get_double(j, where, "lr");
+  o.schedule = get_string(j, where, "schedule");
+  o.final_lr = get_double(j, where, "final_lr");
+  o.warmup = get_int(j, where, "warmup");
+  o.clip_norm = get_double(j, where, "clip_norm");
+  if (!(o.lr > 0) || o.final_lr < 0 || o.warmup < 0 || o.clip_norm < 0)
+    throw std::invalid_argument(where +
+                                ": expected lr > 0, final_lr >= 0, warmup >= 0 and "
+                                "clip_norm >= 0, got " +
+                                j.dump());
+  if (o.schedule != "constant" && o.schedule != "cosine")
+    throw std::invalid_argument(where + ".schedule: expected \"constant\" or \"cosine\", got \"" +
+                                o.schedule + "\"");
+  return o;
+}
+
+void require_positive(std::int64_t v, const std::string& name) {
+  if (v < 1)
+    throw std::invalid_argument(name + ": expected >= 1, got " + std::to_string(v));
+}
+
+}  // namespace
+
+nn::LrSchedule OptimizerConfig::make_schedule(std::int64_t steps) const {
+  if (schedule == "cosine")
+    return nn::LrSchedule::cosine(lr, std::max<std::int64_t>(steps, 1), final_lr, warmup);
+  return nn::LrSchedule::constant(lr);
+}
+
+nlohmann::json ExperimentConfig::to_json() const {
+  return raw;
+}
+
+ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std::string& where) {
+  try {
+    reject_unknown_keys(j, "config",
+                        {"name", "preset", "source", "deviations", "dataset", "ae1", "ldr", "ae2",
+                         "log_every", "checkpoint_every"});
+    ExperimentConfig c;
+    c.raw = j;
+    c.name = get_string(j, "config", "name");
+    c.preset = get_string(j, "config", "preset");
+    if (c.preset != "tiny" && c.preset != "small" && c.preset != "paper")
+      throw std::invalid_argument(
+          "config.preset: expected \"tiny\", \"small\" or \"paper\", got \"" + c.preset + "\"");
+    c.source = get_string(j, "config", "source");
+    c.deviations = get_strings(j, "config", "deviations");
+    c.log_every = get_int(j, "config", "log_every");
+    c.checkpoint_every = get_int(j, "config", "checkpoint_every");
+    require_positive(c.log_every, "config.log_every");
+    require_positive(c.checkpoint_every, "config.checkpoint_every");
+
+    // the dataset
+    const nlohmann::json& d = field(j, "config", "dataset");
+    reject_unknown_keys(d, "config.dataset", {"config", "cameras", "image_size", "joints"});
+    c.dataset_config = get_string(d, "config.dataset", "config");
+    c.cameras = get_int(d, "config.dataset", "cameras");
+    c.image_size = get_int(d, "config.dataset", "image_size");
+    c.joints = get_strings(d, "config.dataset", "joints");
+    require_positive(c.cameras, "config.dataset.cameras");
+    if (c.joints.empty())
+      throw std::invalid_argument("config.dataset.joints: expected at least one joint, got []");
+
+    // AE1
+    const nlohmann::json& a1 = field(j, "config", "ae1");
+    reject_unknown_keys(
+        a1, "config.ae1",
+        {"stem", "stem_factor", "stem_channels", "widths", "blocks_per_stage", "code_channels",
+         "batch_size", "steps", "epochs", "micro_batch", "optimizer"});
+    c.ae1.image_size = c.image_size;
+    c.ae1.stem = get_string(a1, "config.ae1", "stem");
+    c.ae1.stem_factor = static_cast<int>(get_int(a1, "config.ae1", "stem_factor"));
+    c.ae1.stem_channels = get_int(a1, "config.ae1", "stem_channels");
+    c.ae1.widths = get_ints(a1, "config.ae1", "widths");
+    c.ae1.blocks_per_stage = static_cast<int>(get_int(a1, "config.ae1", "blocks_per_stage"));
+    c.ae1.code_channels = get_int(a1, "config.ae1", "code_channels");
+    if (const std::string p = c.ae1.problem(); !p.empty())
+      throw std::invalid_argument("config." + p);
+    c.ae1_training.batch_size = get_int(a1, "config.ae1", "batch_size");
+    if (c.ae1_training.batch_size % c.cameras != 0)
+      throw std::invalid_argument(
+          "config.ae1.batch_size: " + std::to_string(c.ae1_training.batch_size) +
+          " is not a multiple of the cameras (" + std::to_string(c.cameras) +
+          "): a step takes whole samples");
+    c.ae1_training.micro_batch = get_int(a1, "config.ae1", "micro_batch");
+    require_positive(c.ae1_training.batch_size, "config.ae1.batch_size");
+    require_positive(c.ae1_training.micro_batch, "config.ae1.micro_batch");
+    const bool has_steps = a1.contains("steps"), has_epochs = a1.contains("epochs");
+    if (has_steps == has_epochs)
+      throw std::invalid_argument("config.ae1: expected exactly one of \"steps\" and \"epochs\"");
+    if (has_steps) {
+      c.ae1_training.steps = get_int(a1, "config.ae1", "steps");
+      require_positive(c.ae1_training.steps, "config.ae1.steps");
+    } else if (!(get_double(a1, "config.ae1", "epochs") > 0)) {
+      throw std::invalid_argument("config.ae1.epochs: expected > 0, got " + a1["epochs"].dump());
+    }
+    c.ae1_training.optimizer =
+        parse_optimizer(field(a1, "config.ae1", "optimizer"), "config.ae1.optimizer");
+
+    // the code Y: [C, 8, 8]
+    const std::int64_t side = c.ae1.code_size();
+
+    // LDR
+    const nlohmann::json& l = field(j, "config", "ldr");
+    reject_unknown_keys(l, "config.ldr",
+                        {"widths", "hidden", "batch_size", "max_epochs", "patience",
+                         "held_out_fraction", "optimizer"});
+    c.ldr.in_channels = c.code_channels();
+    c.ldr.input_size = side;
+    c.ldr.widths = get_ints(l, "config.ldr", "widths");
+    c.ldr.hidden = get_int(l, "config.ldr", "hidden");
+    if (const std::string p = c.ldr.problem(); !p.empty())
+      throw std::invalid_argument("config." + p);
+    c.ldr_training.batch_size = get_int(l, "config.ldr", "batch_size");
+    c.ldr_training.max_epochs = get_int(l, "config.ldr", "max_epochs");
+    c.ldr_training.patience = get_int(l, "config.ldr", "patience");
+    c.ldr_training.held_out_fraction = get_double(l, "config.ldr", "held_out_fraction");
+    require_positive(c.ldr_training.batch_size, "config.ldr.batch_size");
+    require_positive(c.ldr_training.max_epochs, "config.ldr.max_epochs");
+    require_positive(c.ldr_training.patience, "config.ldr.patience");
+    if (!(c.ldr_training.held_out_fraction > 0 && c.ldr_training.held_out_fraction < 1))
+      throw std::invalid_argument("config.ldr.held_out_fraction: expected in (0, 1), got " +
+                                  l["held_out_fraction"].dump());
+    c.ldr_training.optimizer =
+        parse_optimizer(field(l, "config.ldr", "optimizer"), "config.ldr.optimizer");
+
+    // AE2
+    const nlohmann::json& a2 = field(j, "config", "ae2");
+    reject_unknown_keys(
+        a2, "config.ae2",
+        {"kind", "latent_dim", "widths", "decoder_widths", "blocks_per_stage", "activation", "mode",
+         "lambda", "sparsity_norm", "score_normalization", "score_samples", "batch_size",
+         "sparsity_batch_size", "steps", "micro_batch", "optimizer", "lambda0_baseline"});
+    c.ae2.kind = get_string(a2, "config.ae2", "kind");
+    c.ae2.in_channels = c.code_channels();
+    c.ae2.input_size = side;
+    c.ae2.latent_dim = get_int(a2, "config.ae2", "latent_dim");
+    c.ae2.widths = get_ints(a2, "config.ae2", "widths");
+    c.ae2.decoder_widths = get_ints(a2, "config.ae2", "decoder_widths");
+    c.ae2.blocks_per_stage = static_cast<int>(get_int(a2, "config.ae2", "blocks_per_stage"));
+    c.ae2.activation = get_string(a2, "config.ae2", "activation");
+    if (const std::string p = c.ae2.problem(); !p.empty())
+      throw std::invalid_argument("config." + p);
+    Ae2Training& t = c.ae2_training;
+    t.mode = get_string(a2, "config.ae2", "mode");
+    if (t.mode != "per_joint" && t.mode != "joint")
+      throw std::invalid_argument("config.ae2.mode: expected \"per_joint\" or \"joint\", got \"" +
+                                  t.mode + "\"");
+    t.lambda = get_double(a2, "config.ae2", "lambda");
+    if (!(t.lambda >= 0))
+      throw std::invalid_argument("config.ae2.lambda: expected >= 0, got " + a2["lambda"].dump());
+    t.norm = parse_sparsity_norm(get_string(a2, "config.ae2", "sparsity_norm"));
+    t.score_normalization = get_string(a2, "config.ae2", "score_normalization");
+    if (t.score_normalization != "none" && t.score_normalization != "unit")
+      throw std::invalid_argument(
+          "config.ae2.score_normalization: expected \"none\" or \"unit\", got \"" +
+          t.score_normalization + "\"");
+    t.score_samples = get_string(a2, "config.ae2", "score_samples");
+    if (t.score_samples != "intervened" && t.score_samples != "all")
+      throw std::invalid_argument(
+          "config.ae2.score_samples: expected \"intervened\" or \"all\", got \"" + t.score_samples +
+          "\"");
+    t.batch_size = get_int(a2, "config.ae2", "batch_size");
+    t.sparsity_batch_size = get_int(a2, "config.ae2", "sparsity_batch_size");
+    t.steps = get_int(a2, "config.ae2", "steps");
+    t.micro_batch = get_int(a2, "config.ae2", "micro_batch");
+    require_positive(t.batch_size, "config.ae2.batch_size");
+    require_positive(t.sparsity_batch_size, "config.ae2.sparsity_batch_size");
+    require_positive(t.steps, "config.ae2.steps");
+    require_positive(t.micro_batch, "config.ae2.micro_batch");
+    t.optimizer = parse_optimizer(field(a2, "config.ae2", "optimizer"), "config.ae2.optimizer");
+    t.lambda0_baseline = get_bool(a2, "config.ae2", "lambda0_baseline");
+    if (c.ae2.latent_dim < static_cast<std::int64_t>(c.joints.size()))
+      throw std::invalid_argument("config.ae2.latent_dim: " + std::to_string(c.ae2.latent_dim) +
+                                  " is smaller than the number of intervened joints (" +
+                                  std::to_string(c.joints.size()) +
+                                  "); latent i estimates joint i");
+    return c;
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(where + ": " + e.what());
+  }
+}
+
+void ExperimentConfig::resolve_epochs(std::int64_t dataset_images) {
+  if (!raw["ae1"].contains("epochs"))
+    return;
+  const double epochs = raw["ae1"]["epochs"].get<double>();
+  ae1_training.steps = std::max<std::int64_t>(
+      1, static_cast<std::int64_t>(epochs * static_cast<double>(dataset_images) /
+                                       static_cast<double>(ae1_training.batch_size) +
+                                   0.999999));
+}
+
+fs::path installed_config_dir() {
+  return fs::path(ROPES_CRL_CONFIG_DIR);
+}
+
+ExperimentConfig load_experiment_config(const std::string& name_or_path) {
+  fs::path path = name_or_path;
+  if (!fs::is_regular_file(path)) {
+    const fs::path installed = installed_config_dir() / (name_or_path + ".json");
+    if (!fs::is_regular_file(installed)) {
+      std::string names;
+      std::error_code ec;
+      for (const auto& e : fs::directory_iterator(installed_config_dir(), ec))
+        if (e.path().extension() == ".json")
+          names += (names.empty() ? "" : ", ") + e.path().stem().string();
+      throw std::invalid_argument("experiment config '" + name_or_path +
+                                  "' is neither a file nor an installed config (installed in " +
+                                  installed_config_dir().string() + ": " + names + ")");
+    }
+    path = installed;
+  }
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  if (!in && !in.eof())
+    throw std::invalid_argument(path.string() + ": cannot be read");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(text.str());
+  } catch (const nlohmann::json::parse_error& e) {
+    throw std::invalid_argument(path.string() + ": not valid JSON (" + e.what() + ")");
+  }
+  return ExperimentConfig::from_json(j, path.string());
+}
+
+}  // namespace ropes::crl

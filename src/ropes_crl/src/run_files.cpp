@@ -1,0 +1,131 @@
+#include "run_files.hpp"
+
+#include <ropes_nn/module.hpp>
+#include <ropes_nn/npy.hpp>
+
+#include <unistd.h>
+
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+namespace ropes::crl::detail {
+
+nlohmann::json read_json_file(const fs::path& path) {
+  std::ifstream in(path);
+  if (!in)
+    throw nn::FileFormatError(path.string() + ": cannot be opened");
+  std::stringstream text;
+  text << in.rdbuf();
+  const nlohmann::json j = nlohmann::json::parse(text.str(), nullptr, false);
+  if (j.is_discarded())
+    throw nn::FileFormatError(path.string() + ": not valid JSON");
+  return j;
+}
+
+void write_json_file(const fs::path& path, const nlohmann::json& j) {
+  const std::string text = j.dump(2) + "\n";
+  nn::write_file_atomically(path, reinterpret_cast<const std::uint8_t*>(text.data()), text.size());
+}
+
+std::vector<std::string> MetricsLog::lines() const {
+  std::vector<std::string> out;
+  std::ifstream in(path_);
+  std::string line;
+  while (std::getline(in, line))
+    if (!line.empty())
+      out.push_back(line);
+  return out;
+}
+
+void MetricsLog::rewrite(const std::vector<std::string>& lines) const {
+  std::string text;
+  for (const std::string& l : lines)
+    text += l + "\n";
+  nn::write_file_atomically(path_, reinterpret_cast<const std::uint8_t*>(text.data()), text.size());
+}
+
+void MetricsLog::append(const nlohmann::json& record) const {
+  std::FILE* f = std::fopen(path_.c_str(), "a");
+  if (f == nullptr)
+    throw nn::FileFormatError(path_.string() + ": cannot be opened for appending");
+  const std::string line = record.dump() + "\n";
+  const bool ok = std::fwrite(line.data(), 1, line.size(), f) == line.size();
+  if (std::fclose(f) != 0 || !ok)
+    throw nn::FileFormatError(path_.string() + ": a record could not be written (disk full?)");
+}
+
+Progress::Progress(std::string stage, std::int64_t total, std::int64_t first, bool bar,
+                   std::int64_t log_every)
+    : stage_(std::move(stage)),
+      total_(total),
+      first_(first),
+      bar_(bar),
+      log_every_(log_every),
+      start_(std::chrono::steady_clock::now()) {}
+
+void Progress::update(std::int64_t step, double loss, const std::string& extra) {
+  if (!bar_ && step % log_every_ != 0 && step != total_)
+    return;
+  const double elapsed =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  const double done = static_cast<double>(step - first_);
+  const double eta = done > 0 ? elapsed / done * static_cast<double>(total_ - step) : 0.0;
+  char line[256];
+  if (bar_) {
+    const int width = 24;
+    const int filled = static_cast<int>(width * step / std::max<std::int64_t>(total_, 1));
+    std::string b(static_cast<std::size_t>(filled), '#');
+    b.resize(width, '.');
+    std::snprintf(line, sizeof line, "\r%-14s [%s] %lld/%lld loss %.5f ETA %4.0fs %s\x1b[K",
+                  stage_.c_str(), b.c_str(), static_cast<long long>(step),
+                  static_cast<long long>(total_), loss, eta, extra.c_str());
+  } else {
+    std::snprintf(line, sizeof line, "ropes-train: %s step %lld/%lld loss %.5f ETA %.0fs %s\n",
+                  stage_.c_str(), static_cast<long long>(step), static_cast<long long>(total_),
+                  loss, eta, extra.c_str());
+  }
+  std::fputs(line, stderr);
+  std::fflush(stderr);
+}
+
+void Progress::finish(const std::string& summary) {
+  const double elapsed =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  std::fprintf(stderr, "%sropes-train: %s done in %.1f s: %s\n", bar_ ? "\r\x1b[K" : "",
+               stage_.c_str(), elapsed, summary.c_str());
+  std::fflush(stderr);
+}
+
+nn::Tensor gather_rows(const std::vector<float>& values, const std::vector<std::int64_t>& row,
+                       const std::vector<std::int64_t>& rows) {
+  std::int64_t per = 1;
+  for (std::int64_t d : row)
+    per *= d;
+  nn::Buffer out(static_cast<std::size_t>(per) * rows.size());
+  for (std::size_t i = 0; i < rows.size(); ++i)
+    std::copy_n(values.data() + rows[i] * per, per, out.data() + i * per);
+  std::vector<std::int64_t> shape{static_cast<std::int64_t>(rows.size())};
+  shape.insert(shape.end(), row.begin(), row.end());
+  return nn::Tensor(nn::Shape(shape), std::move(out));
+}
+
+std::vector<std::int64_t> StepSampler::rows(std::int64_t step) {
+  std::vector<std::int64_t> out;
+  out.reserve(static_cast<std::size_t>(batch_));
+  for (std::int64_t k = step * batch_; k < (step + 1) * batch_; ++k) {
+    const std::int64_t epoch = k / n_;
+    if (epoch != cached_epoch_) {
+      perm_ = nn::shuffled_indices(n_, seed_, static_cast<std::uint64_t>(epoch));
+      cached_epoch_ = epoch;
+    }
+    out.push_back(perm_[static_cast<std::size_t>(k % n_)]);
+  }
+  return out;
+}
+
+std::uint64_t derive_seed(std::uint64_t seed, const std::string& what) {
+  return nn::fnv1a64(std::to_string(seed) + "/" + what);
+}
+
+}  // namespace ropes::crl::detail

@@ -1,0 +1,150 @@
+#include "ropes_crl/sparsity_objective.hpp"
+
+#include <ropes_nn/ops.hpp>
+
+#include <stdexcept>
+
+namespace ropes::crl {
+
+using nn::Shape;
+
+Tensor latent_score_differences(Ae2& ae2, const Tensor& y, const Tensor& v, bool create_graph) {
+  if (y.shape() != v.shape())
+    throw std::invalid_argument("latent_score_differences: codes " + y.shape().str() +
+                                " and score differences " + v.shape().str() +
+                                " must have the same shape");
+  const Tensor z = ae2.encode(y);
+  const Tensor y_hat = ae2.decode(z);
+  return nn::grad({y_hat}, {z}, {v}, create_graph)[0];
+}
+
+Tensor unit_length_rows(const Tensor& v) {
+  const std::int64_t n = v.shape()[0];
+  const std::int64_t per = v.numel() / std::max<std::int64_t>(n, 1);
+  std::vector<float> out(v.data(), v.data() + v.numel());
+  for (std::int64_t i = 0; i < n; ++i) {
+    double s = 0;
+    for (std::int64_t j = 0; j < per; ++j)
+      s += static_cast<double>(out[i * per + j]) * out[i * per + j];
+    const double scale = s > 0 ? 1.0 / std::sqrt(s) : 0.0;
+    for (std::int64_t j = 0; j < per; ++j)
+      out[i * per + j] = static_cast<float>(out[i * per + j] * scale);
+  }
+  return Tensor(v.shape(), out);
+}
+
+Tensor sparsity_penalty(const Tensor& mean_abs, std::int64_t target, SparsityNorm norm) {
+  const std::int64_t d = mean_abs.numel();
+  if (target < 0 || target >= d)
+    throw std::invalid_argument("sparsity_penalty: target latent " + std::to_string(target) +
+                                " is outside [0, " + std::to_string(d) + ")");
+  std::vector<float> e(static_cast<std::size_t>(d), 0.0f);
+  e[static_cast<std::size_t>(target)] = 1.0f;
+  const Tensor diff = nn::sub(nn::reshape(mean_abs, Shape{d}), Tensor(Shape{d}, e));
+  return norm == SparsityNorm::kL1 ? nn::sum(nn::abs(diff)) : nn::sum(nn::square(diff));
+}
+
+namespace {
+
+// rows [p * n / parts, (p + 1) * n / parts) of a set of n
+Tensor part_of(const Tensor& t, std::size_t p, std::size_t parts) {
+  const std::int64_t n = t.shape()[0];
+  const std::int64_t b = n * static_cast<std::int64_t>(p) / static_cast<std::int64_t>(parts);
+  const std::int64_t e = n * static_cast<std::int64_t>(p + 1) / static_cast<std::int64_t>(parts);
+  if (e == b)
+    return Tensor();
+  return nn::slice(t, 0, b, e);
+}
+
+// the non-empty pieces, concatenated along dim 0
+Tensor join(const std::vector<Tensor>& pieces) {
+  std::vector<Tensor> kept;
+  for (const Tensor& t : pieces)
+    if (t.defined() && t.shape()[0] > 0)
+      kept.push_back(t);
+  return kept.size() == 1 ? kept[0] : nn::concat(kept, 0);
+}
+
+}  // namespace
+
+nn::BatchLoss ae2_batch_loss(Ae2& ae2, const Ae2Batch& batch, double lambda, SparsityNorm norm,
+                             std::int64_t micro_batch, std::size_t* micro_batches) {
+  const std::size_t terms = lambda > 0 ? batch.term_codes.size() : 0;
+  if (batch.term_scores.size() != batch.term_codes.size() ||
+      batch.targets.size() != batch.term_codes.size())
+    throw std::invalid_argument("ae2_batch_loss: " + std::to_string(batch.term_codes.size()) +
+                                " term code sets, " + std::to_string(batch.term_scores.size()) +
+                                " score sets and " + std::to_string(batch.targets.size()) +
+                                " targets; expected one of each per term");
+  if (micro_batch < 1)
+    throw std::invalid_argument("ae2_batch_loss: micro_batch must be >= 1, got " +
+                                std::to_string(micro_batch));
+  const std::int64_t n_r = batch.reconstruction.shape()[0];
+  std::int64_t total = n_r;
+  for (std::size_t k = 0; k < terms; ++k)
+    total += batch.term_codes[k].shape()[0];
+  // as many parts as the micro-batch size asks for, but never more than the smallest set
+  // has rows, so that no part is empty
+  std::int64_t smallest = n_r;
+  for (std::size_t k = 0; k < terms; ++k)
+    smallest = std::min(smallest, batch.term_codes[k].shape()[0]);
+  if (smallest < 1)
+    throw std::invalid_argument("ae2_batch_loss: a sample set of the batch is empty");
+  const std::size_t parts =
+      static_cast<std::size_t>(std::min((total + micro_batch - 1) / micro_batch, smallest));
+  *micro_batches = parts;
+  const std::int64_t d = ae2.spec().latent_dim;
+  // each statistic is scaled so that its mean over all `total` rows is its mean over its set
+  const float scale_r = static_cast<float>(total) / static_cast<float>(n_r);
+  std::vector<float> scale_k;
+  for (std::size_t k = 0; k < terms; ++k)
+    scale_k.push_back(static_cast<float>(total) /
+                      static_cast<float>(batch.term_codes[k].shape()[0]));
+
+  nn::BatchLoss loss;
+  loss.outer_is_affine = terms == 0;
+  loss.statistics = [&ae2, &batch, parts, terms, d, scale_r, scale_k](std::size_t p,
+                                                                      bool create_graph) {
+    // rows of this part: [reconstruction | term 0 | term 1 | ...]
+    const Tensor y_r = part_of(batch.reconstruction, p, parts);
+    std::vector<Tensor> jtv(terms);
+    std::vector<std::int64_t> sizes{y_r.defined() ? y_r.shape()[0] : 0};
+    for (std::size_t k = 0; k < terms; ++k) {
+      const Tensor y = part_of(batch.term_codes[k], p, parts);
+      if (y.defined())
+        jtv[k] = nn::mul_scalar(nn::abs(latent_score_differences(
+                                    ae2, y, part_of(batch.term_scores[k], p, parts), create_graph)),
+                                scale_k[k]);
+      sizes.push_back(y.defined() ? y.shape()[0] : 0);
+    }
+    std::int64_t rows = 0;
+    for (std::int64_t s : sizes)
+      rows += s;
+    std::vector<Tensor> stats;
+    // reconstruction: mean squared error per sample on its rows, 0 elsewhere
+    Tensor recon;
+    if (y_r.defined())
+      recon = nn::mul_scalar(nn::mean(nn::square(nn::sub(ae2(y_r), y_r)), {1, 2, 3}), scale_r);
+    stats.push_back(
+        join({recon, rows > sizes[0] ? Tensor::zeros(Shape{rows - sizes[0]}) : Tensor()}));
+    std::int64_t before = sizes[0];
+    for (std::size_t k = 0; k < terms; ++k) {
+      const std::int64_t after = rows - before - sizes[k + 1];
+      stats.push_back(join({before > 0 ? Tensor::zeros(Shape{before, d}) : Tensor(), jtv[k],
+                            after > 0 ? Tensor::zeros(Shape{after, d}) : Tensor()}));
+      before += sizes[k + 1];
+    }
+    return stats;
+  };
+  const std::vector<std::int64_t> targets = batch.targets;
+  loss.outer = [terms, lambda, norm, targets](const std::vector<Tensor>& means) {
+    Tensor l = means[0];
+    for (std::size_t k = 0; k < terms; ++k)
+      l = nn::add(l, nn::mul_scalar(sparsity_penalty(means[1 + k], targets[k], norm),
+                                    static_cast<float>(lambda)));
+    return l;
+  };
+  return loss;
+}
+
+}  // namespace ropes::crl

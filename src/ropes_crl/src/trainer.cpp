@@ -1,0 +1,533 @@
+#include "ropes_crl/trainer.hpp"
+
+#include <ropes_nn/adam.hpp>
+#include <ropes_nn/batch_loader.hpp>
+#include <ropes_nn/checkpoint.hpp>
+#include <ropes_nn/npy.hpp>
+#include <ropes_nn/ops.hpp>
+#include <ropes_nn/parallel.hpp>
+#include <ropes_nn/train_step.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <map>
+#include <set>
+#include <stdexcept>
+
+#include "ropes_crl/bayes_accuracy.hpp"
+#include "ropes_crl/sparsity_objective.hpp"
+#include "run_files.hpp"
+#include "training_data.hpp"
+
+namespace ropes::crl {
+
+using namespace detail;
+using nn::Shape;
+
+const char* ropes_crl_version() {
+  return ROPES_CRL_VERSION_STRING;
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
+
+std::map<std::string, std::string> network_metadata(const std::string& kind,
+                                                    const nlohmann::json& spec,
+                                                    const ExperimentConfig& config,
+                                                    const nlohmann::json& extra = {}) {
+  nlohmann::json net = {{"kind", kind}, {"spec", spec}};
+  if (!extra.is_null())
+    net["info"] = extra;
+  return {{kNetworkKey, net.dump()}, {kConfigKey, config.to_json().dump()}};
+}
+
+// a loss or gradient that is not finite: name the stage and the step, keep the checkpoint
+[[noreturn]] void fail_step(const std::string& stage, std::int64_t step, const std::string& why,
+                            const fs::path& checkpoint) {
+  throw std::runtime_error("stage " + stage + ", step " + std::to_string(step) + ": " + why +
+                           (fs::exists(checkpoint)
+                                ? "; the last checkpoint " + checkpoint.string() + " is kept"
+                                : "; no checkpoint was written yet"));
+}
+
+// a log line (plain logs only) and the test hook, after each checkpoint
+void note_checkpoint(const TrainOptions& options, const std::string& stage, std::int64_t step) {
+  if (!options.progress_bar) {
+    std::fprintf(stderr, "ropes-train: checkpoint %s step %lld\n", stage.c_str(),
+                 static_cast<long long>(step));
+    std::fflush(stderr);
+  }
+  if (options.on_checkpoint)
+    options.on_checkpoint(stage, step);
+}
+
+// --- the run directory ----------------------------------------------------------------------
+nlohmann::json open_run(const ExperimentConfig& config, const TrainingData& data,
+                        const fs::path& run_dir, const TrainOptions& options) {
+  const fs::path run_json = run_dir / "run.json";
+  const nlohmann::json identity = {{"config", config.to_json()},
+                                   {"dataset", data.dataset_id},
+                                   {"seed", options.seed},
+                                   {"threads", options.threads}};
+  if (fs::exists(run_json)) {
+    nlohmann::json run = read_json_file(run_json);
+    if (run.value("format", "") != kRunFormat)
+      throw std::invalid_argument(run_json.string() + ": not a ropes run (format \"" +
+                                  run.value("format", "") + "\", expected \"" + kRunFormat + "\")");
+    for (const auto& [key, value] : identity.items())
+      if (run[key] != value)
+        throw std::invalid_argument(
+            run_dir.string() + " holds a run with another " + key + " (" +
+            (key == "config" ? run[key].value("name", "?") : run[key].dump()) +
+            ", this one: " + (key == "config" ? config.name : value.dump()) +
+            "); choose another --out or remove it");
+    return run;
+  }
+  if (fs::exists(run_dir) && !fs::is_empty(run_dir))
+    throw std::invalid_argument(run_dir.string() +
+                                " is not empty and holds no run.json; choose an empty or new "
+                                "directory for --out");
+  fs::create_directories(run_dir);
+  nlohmann::json run = identity;
+  run["format"] = kRunFormat;
+  run["format_version"] = kRunFormatVersion;
+  run["data_dir"] = fs::absolute(data.dir).string();
+  run["versions"] = {{"ropes_crl", ROPES_CRL_VERSION_STRING},
+                     {"ropes_nn", ROPES_NN_VERSION_STRING}};
+  run["joints"] = config.joints;
+  run["stages"] = nlohmann::json::object();
+  write_json_file(run_json, run);
+  return run;
+}
+
+void add_stage_time(nlohmann::json& run, const std::string& stage, double seconds) {
+  nlohmann::json& s = run["stages"][stage];
+  if (!s.is_object())
+    s = nlohmann::json::object();
+  s["wall_s"] = s.value("wall_s", 0.0) + seconds;
+}
+
+// --- stage 1: AE1 ---------------------------------------------------------------------------
+void train_ae1(const ExperimentConfig& config, const TrainingData& data, const fs::path& run_dir,
+               const TrainOptions& options, const MetricsLog& metrics) {
+  const Ae1Training& t = config.ae1_training;
+  Ae1 net(config.ae1);
+  net.initialize(derive_seed(options.seed, "ae1.init"));
+  nn::Adam adam(net.named_parameters(), nn::AdamOptions{t.optimizer.lr});
+  nn::LrSchedule schedule = t.optimizer.make_schedule(t.steps);
+
+  nn::BatchLoaderOptions lo;
+  lo.columns = {"images"};
+  lo.batch_size = t.batch_size / config.cameras;
+  lo.seed = derive_seed(options.seed, "ae1.data");
+  lo.drop_last = lo.batch_size <= data.rows;
+  nn::BatchLoader loader(data.reader, lo);
+
+  const fs::path weights = ae1_file(run_dir), checkpoint = checkpoint_of(weights);
+  if (fs::exists(checkpoint)) {
+    const nn::LoadedCheckpoint c = nn::load_checkpoint(checkpoint, net, adam);
+    schedule = c.schedule;
+    loader.seek({c.progress.epoch, c.progress.position});
+  }
+  const std::int64_t first = adam.steps();
+  metrics.truncate([&](const nlohmann::json& r) {
+    return r.value("stage", "") != "ae1" || r.value("step", 0) <= first;
+  });
+  Progress progress("ae1", t.steps, first, options.progress_bar, config.log_every);
+  Clock::time_point window = Clock::now();
+  std::int64_t window_images = 0;
+  const std::int64_t side = config.image_size;
+  while (adam.steps() < t.steps) {
+    const nn::Batch batch = loader.next();
+    const std::int64_t n = batch.size() * config.cameras;
+    // every camera image is one AE1 sample: [rows, cams, S, S] -> [rows * cams, 1, S, S]
+    const Tensor images = nn::reshape(batch.tensor("images"), Shape{n, 1, side, side});
+    const std::vector<nn::RowRange> parts = nn::split_rows(n, t.micro_batch);
+    const nn::BatchLoss loss = nn::mean_loss([&](std::size_t i) {
+      const Tensor x = nn::slice(images, 0, parts[i].begin, parts[i].end);
+      return nn::mean(nn::square(nn::sub(net(x), x)), {1, 2, 3});
+    });
+    nn::StepOptions so;
+    so.micro_batches = parts.size();
+    so.schedule = &schedule;
+    so.clip_norm = t.optimizer.clip_norm;
+    nn::StepResult r;
+    try {
+      r = nn::train_step(adam, loss, so);
+    } catch (const std::invalid_argument& e) {
+      fail_step("ae1", adam.steps() + 1, e.what(), checkpoint);
+    }
+    window_images += n;
+    const std::int64_t step = adam.steps();
+    if (step % config.log_every == 0 || step == t.steps) {
+      const double rate = static_cast<double>(window_images) / seconds_since(window);
+      metrics.append({{"stage", "ae1"},
+                      {"step", step},
+                      {"loss", r.loss},
+                      {"lr", r.lr},
+                      {"grad_norm", r.grad_norm},
+                      {"images_per_s", rate}});
+      window = Clock::now();
+      window_images = 0;
+    }
+    progress.update(step, r.loss);
+    if (step % config.checkpoint_every == 0 && step < t.steps) {
+      const nn::DataCursor at = loader.cursor();
+      nn::save_checkpoint(checkpoint, net, adam, schedule, {options.seed, at.epoch, at.position},
+                          network_metadata("ae1", config.ae1.to_json(), config));
+      note_checkpoint(options, "ae1", step);
+    }
+  }
+  nn::save_module(net, weights, network_metadata("ae1", config.ae1.to_json(), config));
+  fs::remove(checkpoint);
+  progress.finish(std::to_string(t.steps) + " steps");
+}
+
+// Y = E1(x) of every row, cams' codes concatenated along channels: [rows, C, 8, 8]
+void encode_codes(const ExperimentConfig& config, const TrainingData& data,
+                  const fs::path& run_dir) {
+  Ae1 net(config.ae1);
+  nn::load_module(net, ae1_file(run_dir));
+  nn::GradModeGuard no_grad(false);
+  const std::int64_t side = config.image_size, code = config.ae1.code_size();
+  const std::int64_t c = config.code_channels();
+  const std::int64_t per = c * code * code;
+  nn::NpyArray out{nn::DType::kF32,
+                   {data.rows, c, code, code},
+                   std::vector<std::uint8_t>(static_cast<std::size_t>(data.rows * per) * 4)};
+  const std::int64_t chunk = 128;
+  std::vector<std::uint8_t> pixels;
+  for (std::int64_t first = 0; first < data.rows; first += chunk) {
+    const std::int64_t n = std::min(chunk, data.rows - first);
+    const nn::NpyArray raw = data.reader.read_rows("images", first, n);
+    nn::Buffer x(static_cast<std::size_t>(n * config.cameras * side * side));
+    for (std::size_t i = 0; i < x.size(); ++i)
+      x[i] = static_cast<float>(raw.data[i]) / 255.0f;
+    const Tensor images(Shape{n * config.cameras, 1, side, side}, std::move(x));
+    const Tensor y = net.encode(images);  // [n * cams, K, 8, 8] = [n, cams * K, 8, 8]
+    std::memcpy(out.data.data() + first * per * 4, y.data(), static_cast<std::size_t>(n * per) * 4);
+  }
+  nn::write_npy(codes_file(run_dir), out);
+}
+
+// --- stage 2: the LDRs ----------------------------------------------------------------------
+struct LdrOutcome {
+  double loss = 0, accuracy = 0;
+  std::int64_t epochs = 0;
+};
+
+// held-out loss and accuracy of `net` on `rows`
+std::pair<double, double> ldr_evaluate(Ldr& net, const TrainingData& data,
+                                       const std::vector<std::int64_t>& rows,
+                                       std::int32_t positive) {
+  nn::GradModeGuard no_grad(false);
+  double loss = 0, correct = 0;
+  for (std::size_t b = 0; b < rows.size(); b += 512) {
+    const std::vector<std::int64_t> part(
+        rows.begin() + static_cast<std::ptrdiff_t>(b),
+        rows.begin() + static_cast<std::ptrdiff_t>(std::min(rows.size(), b + 512)));
+    const Tensor logits = net(data.codes_of(part));
+    const Tensor labels = data.labels_of(part, positive);
+    loss += nn::sum(nn::bce_with_logits_elementwise(logits, labels)).item();
+    for (std::size_t i = 0; i < part.size(); ++i)
+      correct += (logits.data()[i] > 0) == (labels.data()[i] > 0.5f) ? 1 : 0;
+  }
+  return {loss / static_cast<double>(rows.size()), correct / static_cast<double>(rows.size())};
+}
+
+LdrOutcome train_ldr(const ExperimentConfig& config, const TrainingData& data,
+                     const JointRegimes& joint, const TrainOptions& options,
+                     const MetricsLog& metrics, const fs::path& weights, bool bar) {
+  const LdrTraining& t = config.ldr_training;
+  Ldr net(config.ldr);
+  net.initialize(derive_seed(options.seed, "ldr.init." + joint.name));
+  nn::Adam adam(net.named_parameters(), nn::AdamOptions{t.optimizer.lr});
+  std::vector<std::int64_t> train_rows, held_rows;
+  for (std::int64_t r : joint.rows)
+    (data.held_out_anchor(r) ? held_rows : train_rows).push_back(r);
+  if (train_rows.empty() || held_rows.empty())
+    throw std::invalid_argument("joint " + joint.name + ": the held-out split of " +
+                                std::to_string(joint.rows.size()) +
+                                " interventional samples leaves one side empty; the dataset "
+                                "needs more anchors");
+  const std::int64_t batches =
+      (static_cast<std::int64_t>(train_rows.size()) + t.batch_size - 1) / t.batch_size;
+  nn::LrSchedule schedule = t.optimizer.make_schedule(batches * t.max_epochs);
+  std::vector<std::vector<float>> best;
+  double best_loss = INFINITY, best_accuracy = 0;
+  std::int64_t since_best = 0, epoch = 0;
+  Progress progress("ldr " + joint.name, t.max_epochs, 0, bar, 1);
+  for (; epoch < t.max_epochs && since_best < t.patience; ++epoch) {
+    const std::vector<std::int64_t> order = nn::shuffled_indices(
+        static_cast<std::int64_t>(train_rows.size()),
+        derive_seed(options.seed, "ldr.data." + joint.name), static_cast<std::uint64_t>(epoch));
+    double train_loss = 0;
+    for (std::int64_t b = 0; b < batches; ++b) {
+      std::vector<std::int64_t> rows;
+      for (std::int64_t k = b * t.batch_size;
+           k < std::min<std::int64_t>((b + 1) * t.batch_size, train_rows.size()); ++k)
+        rows.push_back(train_rows[static_cast<std::size_t>(order[static_cast<std::size_t>(k)])]);
+      const Tensor y = data.codes_of(rows);
+      const Tensor labels = data.labels_of(rows, joint.regime2);
+      nn::StepOptions so;
+      so.schedule = &schedule;
+      so.clip_norm = t.optimizer.clip_norm;
+      try {
+        train_loss += nn::train_step(adam, nn::mean_loss([&](std::size_t) {
+                                       return nn::bce_with_logits_elementwise(net(y), labels);
+                                     }),
+                                     so)
+                          .loss;
+      } catch (const std::invalid_argument& e) {
+        fail_step("ldr " + joint.name, adam.steps() + 1, e.what(), weights);
+      }
+    }
+    const auto [loss, accuracy] = ldr_evaluate(net, data, held_rows, joint.regime2);
+    metrics.append({{"stage", "ldr"},
+                    {"joint", joint.name},
+                    {"epoch", epoch + 1},
+                    {"train_loss", train_loss / static_cast<double>(batches)},
+                    {"held_out_loss", loss},
+                    {"held_out_accuracy", accuracy},
+                    {"bayes_accuracy", joint.bayes_accuracy}});
+    progress.update(epoch + 1, loss,
+                    "acc " + std::to_string(accuracy).substr(0, 5) + " (Bayes " +
+                        std::to_string(joint.bayes_accuracy).substr(0, 5) + ")");
+    if (loss < best_loss) {
+      best_loss = loss;
+      best_accuracy = accuracy;
+      since_best = 0;
+      best.clear();
+      for (const Tensor& p : net.parameters())
+        best.push_back(p.to_vector());
+    } else {
+      ++since_best;
+    }
+  }
+  // the early-stopped weights
+  std::vector<Tensor> params = net.parameters();
+  for (std::size_t i = 0; i < params.size(); ++i)
+    std::copy(best[i].begin(), best[i].end(), params[i].mutable_data());
+  LdrOutcome out{best_loss, best_accuracy, epoch};
+  nn::save_module(net, weights,
+                  network_metadata("ldr", config.ldr.to_json(), config,
+                                   {{"joint", joint.name},
+                                    {"held_out_loss", best_loss},
+                                    {"held_out_accuracy", best_accuracy},
+                                    {"bayes_accuracy", joint.bayes_accuracy},
+                                    {"epochs", epoch}}));
+  progress.finish("held-out accuracy " + std::to_string(best_accuracy) + " (Bayes " +
+                  std::to_string(joint.bayes_accuracy) + ") after " + std::to_string(epoch) +
+                  " epochs");
+  return out;
+}
+
+// --- stage 3: AE2 ---------------------------------------------------------------------------
+struct Ae2Model {
+  std::string name;                ///< file stem: a joint's name, "joint" or "lambda0"
+  std::vector<std::size_t> terms;  ///< indices into config.joints (= target latents)
+  double lambda = 0;
+};
+
+std::vector<Ae2Model> ae2_models(const ExperimentConfig& config) {
+  const Ae2Training& t = config.ae2_training;
+  std::vector<Ae2Model> models;
+  if (t.mode == "per_joint") {
+    for (std::size_t k = 0; k < config.joints.size(); ++k)
+      models.push_back({config.joints[k], {k}, t.lambda});
+  } else {
+    std::vector<std::size_t> all(config.joints.size());
+    for (std::size_t k = 0; k < all.size(); ++k)
+      all[k] = k;
+    models.push_back({"joint", all, t.lambda});
+  }
+  if (t.lambda0_baseline)
+    models.push_back({"lambda0", {}, 0.0});
+  return models;
+}
+
+void train_ae2(const ExperimentConfig& config, const TrainingData& data, const ScoreTable& scores,
+               const Ae2Model& model, const fs::path& run_dir, const TrainOptions& options,
+               const MetricsLog& metrics) {
+  const Ae2Training& t = config.ae2_training;
+  Ae2 net(config.ae2);
+  net.initialize(derive_seed(options.seed, "ae2.init." + model.name));
+  nn::Adam adam(net.named_parameters(), nn::AdamOptions{t.optimizer.lr});
+  nn::LrSchedule schedule = t.optimizer.make_schedule(t.steps);
+  const fs::path weights = ae2_file(run_dir, model.name), checkpoint = checkpoint_of(weights);
+  if (fs::exists(checkpoint))
+    schedule = nn::load_checkpoint(checkpoint, net, adam).schedule;
+  const std::int64_t first = adam.steps();
+  const std::string stage = "ae2 " + model.name;
+  metrics.truncate([&](const nlohmann::json& r) {
+    return r.value("stage", "") != "ae2" || r.value("model", "") != model.name ||
+           r.value("step", 0) <= first;
+  });
+
+  // the batches of step s: a pure function of s (resume needs only the step count)
+  StepSampler recon(data.rows, t.batch_size, derive_seed(options.seed, "ae2.recon." + model.name));
+  std::vector<StepSampler> term_samplers;
+  for (std::size_t k : model.terms)
+    term_samplers.emplace_back(
+        static_cast<std::int64_t>(scores.rows[k].size()), t.sparsity_batch_size,
+        derive_seed(options.seed, "ae2.scores." + model.name + "." + config.joints[k]));
+  Progress progress(stage, t.steps, first, options.progress_bar, config.log_every);
+  Clock::time_point window = Clock::now();
+  std::int64_t window_samples = 0;
+  while (adam.steps() < t.steps) {
+    const std::int64_t s = adam.steps();
+    Ae2Batch batch;
+    batch.reconstruction = data.codes_of(recon.rows(s));
+    for (std::size_t i = 0; i < model.terms.size(); ++i) {
+      const std::size_t k = model.terms[i];
+      std::vector<std::int64_t> picked;
+      for (std::int64_t j : term_samplers[i].rows(s))
+        picked.push_back(j);
+      batch.term_codes.push_back(data.codes_of(scores.dataset_rows(k, picked)));
+      batch.term_scores.push_back(scores.scores_of(k, picked));
+      batch.targets.push_back(static_cast<std::int64_t>(k));
+    }
+    std::size_t parts = 1;
+    const nn::BatchLoss loss =
+        ae2_batch_loss(net, batch, model.lambda, t.norm, t.micro_batch, &parts);
+    nn::StepOptions so;
+    so.micro_batches = parts;
+    so.schedule = &schedule;
+    so.clip_norm = t.optimizer.clip_norm;
+    nn::StepResult r;
+    try {
+      r = nn::train_step(adam, loss, so);
+    } catch (const std::invalid_argument& e) {
+      fail_step(stage, s + 1, e.what(), checkpoint);
+    }
+    window_samples += r.samples;
+    const std::int64_t step = adam.steps();
+    std::string extra;
+    if (step % config.log_every == 0 || step == t.steps) {
+      nlohmann::json rec = {
+          {"stage", "ae2"},
+          {"model", model.name},
+          {"step", step},
+          {"loss", r.loss},
+          {"reconstruction", r.means[0][0]},
+          {"lr", r.lr},
+          {"grad_norm", r.grad_norm},
+          {"samples_per_s", static_cast<double>(window_samples) / seconds_since(window)}};
+      nlohmann::json rows = nlohmann::json::object();
+      for (std::size_t i = 0; i + 1 < r.means.size(); ++i)
+        rows[config.joints[model.terms[i]]] = r.means[i + 1];
+      rec["sparsity_rows"] = rows;
+      metrics.append(rec);
+      window = Clock::now();
+      window_samples = 0;
+    }
+    progress.update(step, r.loss);
+    if (step % config.checkpoint_every == 0 && step < t.steps) {
+      nn::save_checkpoint(checkpoint, net, adam, schedule, {options.seed, 0, step},
+                          network_metadata("ae2", config.ae2.to_json(), config));
+      note_checkpoint(options, stage, step);
+    }
+  }
+  nn::save_module(net, weights,
+                  network_metadata("ae2", config.ae2.to_json(), config,
+                                   {{"model", model.name}, {"lambda", model.lambda}}));
+  fs::remove(checkpoint);
+  progress.finish(std::to_string(t.steps) + " steps");
+}
+
+// row k of model m's sparsity matrix: E|J_g^T v_k| over joint k's score rows
+nlohmann::json sparsity_matrix(const ExperimentConfig& config, const TrainingData& data,
+                               const ScoreTable& scores, const fs::path& weights) {
+  Ae2 net(config.ae2);
+  nn::load_module(net, weights);
+  nlohmann::json m = nlohmann::json::array();
+  for (std::size_t k = 0; k < config.joints.size(); ++k) {
+    std::vector<double> sum(static_cast<std::size_t>(config.ae2.latent_dim), 0.0);
+    const std::int64_t n = static_cast<std::int64_t>(scores.rows[k].size());
+    for (std::int64_t b = 0; b < n; b += 256) {
+      std::vector<std::int64_t> picked;
+      for (std::int64_t j = b; j < std::min<std::int64_t>(n, b + 256); ++j)
+        picked.push_back(j);
+      const Tensor jtv = latent_score_differences(
+          net, data.codes_of(scores.dataset_rows(k, picked)), scores.scores_of(k, picked), false);
+      for (std::int64_t i = 0; i < jtv.numel(); ++i)
+        sum[static_cast<std::size_t>(i % config.ae2.latent_dim)] += std::fabs(jtv.data()[i]);
+    }
+    for (double& v : sum)
+      v /= static_cast<double>(n);
+    m.push_back(sum);
+  }
+  return m;
+}
+
+}  // namespace
+
+void train(const ExperimentConfig& config_in, const fs::path& data_dir, const fs::path& run_dir,
+           const TrainOptions& options) {
+  nn::set_num_threads(options.threads);
+  ExperimentConfig config = config_in;
+  TrainingData data = TrainingData::open(config, data_dir, options.seed);
+  config.resolve_epochs(data.rows * config.cameras);
+  nlohmann::json run = open_run(config_in, data, run_dir, options);
+  const fs::path run_json = run_dir / "run.json";
+  nn::remove_stale_temporaries(run_dir);
+  const MetricsLog metrics(run_dir / "metrics.jsonl");
+
+  // stage 1: AE1, then the codes
+  if (!fs::exists(codes_file(run_dir))) {
+    const Clock::time_point t0 = Clock::now();
+    if (!fs::exists(ae1_file(run_dir)))
+      train_ae1(config, data, run_dir, options, metrics);
+    encode_codes(config, data, run_dir);
+    add_stage_time(run, "ae1", seconds_since(t0));
+    run["stages"]["ae1"]["steps"] = config.ae1_training.steps;
+    write_json_file(run_json, run);
+  }
+  data.load_codes(codes_file(run_dir));
+
+  // stage 2: one LDR per joint
+  for (const JointRegimes& joint : data.joints) {
+    const fs::path weights = ldr_file(run_dir, joint.name);
+    if (fs::exists(weights))
+      continue;
+    metrics.truncate([&](const nlohmann::json& r) {
+      return r.value("stage", "") != "ldr" || r.value("joint", "") != joint.name;
+    });
+    const Clock::time_point t0 = Clock::now();
+    const LdrOutcome o =
+        train_ldr(config, data, joint, options, metrics, weights, options.progress_bar);
+    add_stage_time(run, "ldr", seconds_since(t0));
+    run["ldr"][joint.name] = {{"held_out_loss", o.loss},
+                              {"held_out_accuracy", o.accuracy},
+                              {"bayes_accuracy", joint.bayes_accuracy},
+                              {"epochs", o.epochs}};
+    write_json_file(run_json, run);
+  }
+
+  // score differences v_k(y) = grad_y LDR_k(y), from the frozen classifiers
+  const ScoreTable scores = ScoreTable::compute(config, data, run_dir);
+
+  // stage 3: AE2 (one a joint, or one for all) and the lambda = 0 baseline
+  for (const Ae2Model& model : ae2_models(config)) {
+    const fs::path weights = ae2_file(run_dir, model.name);
+    if (!fs::exists(weights)) {
+      const Clock::time_point t0 = Clock::now();
+      train_ae2(config, data, scores, model, run_dir, options, metrics);
+      add_stage_time(run, model.name == "lambda0" ? "ae2_lambda0" : "ae2", seconds_since(t0));
+    }
+    run["sparsity_matrix"][model.name] = sparsity_matrix(config, data, scores, weights);
+    write_json_file(run_json, run);
+  }
+  run["complete"] = true;
+  write_json_file(run_json, run);
+}
+
+}  // namespace ropes::crl

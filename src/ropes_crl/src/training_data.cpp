@@ -1,0 +1,192 @@
+#include "training_data.hpp"
+
+#include <ropes_nn/checkpoint.hpp>
+#include <ropes_nn/dataset.hpp>
+#include <ropes_nn/npy.hpp>
+#include <ropes_nn/ops.hpp>
+
+#include <cstring>
+#include <stdexcept>
+
+#include "ropes_crl/bayes_accuracy.hpp"
+#include "ropes_crl/sparsity_objective.hpp"
+#include "run_files.hpp"
+
+namespace ropes::crl::detail {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+void expect_column(const nn::DatasetReader& reader, const fs::path& manifest,
+                   const std::string& name, nn::DType dtype) {
+  bool found = false;
+  for (const nn::ColumnSpec& c : reader.columns())
+    if (c.name == name) {
+      found = true;
+      if (c.dtype != dtype)
+        throw std::invalid_argument(manifest.string() + ": column '" + name + "' is " +
+                                    nn::dtype_name(c.dtype) + ", expected " +
+                                    nn::dtype_name(dtype));
+    }
+  if (!found)
+    throw std::invalid_argument(manifest.string() + ": no column '" + name +
+                                "' (a ropes-generate dataset has images, angles, regime, anchor)");
+}
+
+template <class T>
+std::vector<T> read_scalar_column(const nn::DatasetReader& reader, const std::string& name) {
+  const nn::NpyArray a = reader.read_rows(name, 0, reader.rows());
+  std::vector<T> out(static_cast<std::size_t>(reader.rows()));
+  std::memcpy(out.data(), a.data.data(), out.size() * sizeof(T));
+  return out;
+}
+
+}  // namespace
+
+TrainingData TrainingData::open(const ExperimentConfig& config, const fs::path& dir,
+                                std::uint64_t seed) {
+  TrainingData d{dir, nn::DatasetReader::open(dir), {}, 0, {}, {}, {}, {}, {}, {}};
+  const fs::path manifest = dir / "manifest.json";
+  d.dataset_id = read_json_file(manifest).value("dataset", "");
+  d.rows = d.reader.rows();
+  expect_column(d.reader, manifest, "images", nn::DType::kU8);
+  expect_column(d.reader, manifest, "regime", nn::DType::kI32);
+  expect_column(d.reader, manifest, "anchor", nn::DType::kI64);
+  const std::vector<std::int64_t> image = d.reader.column("images").row_shape;
+  const std::vector<std::int64_t> want{config.cameras, config.image_size, config.image_size};
+  if (image != want) {
+    auto str = [](const std::vector<std::int64_t>& v) {
+      std::string s = "[";
+      for (std::size_t i = 0; i < v.size(); ++i)
+        s += (i ? ", " : "") + std::to_string(v[i]);
+      return s + "]";
+    };
+    throw std::invalid_argument(manifest.string() + ": images are " + str(image) +
+                                " (cameras, height, width) a sample; config '" + config.name +
+                                "' expects " + str(want));
+  }
+  // the regimes of each intervened joint
+  const nlohmann::json& regimes = d.reader.metadata_at(
+      "/regimes", "regenerate the dataset with this ropes-generate (sim_dataset_version 2)");
+  d.regime = read_scalar_column<std::int32_t>(d.reader, "regime");
+  d.anchor = read_scalar_column<std::int64_t>(d.reader, "anchor");
+  const nlohmann::json& interventions =
+      d.reader.metadata_at("/distribution/interventions", "the distribution's interventions");
+  for (const std::string& joint : config.joints) {
+    JointRegimes j;
+    j.name = joint;
+    bool one = false, two = false;
+    for (std::size_t r = 0; r < regimes.size(); ++r) {
+      const nlohmann::json& g = regimes[r];
+      if (!g.contains("joint") || !g["joint"].is_string() || g["joint"] != joint)
+        continue;
+      if (g["intervention"] == 1) {
+        j.regime1 = static_cast<std::int32_t>(r);
+        one = true;
+      } else if (g["intervention"] == 2) {
+        j.regime2 = static_cast<std::int32_t>(r);
+        two = true;
+      }
+    }
+    if (!one || !two)
+      throw std::invalid_argument(
+          manifest.string() + ": joint '" + joint + "' of config '" + config.name +
+          "' has no regimes with interventions 1 and 2 in metadata.regimes");
+    for (std::int64_t r = 0; r < d.rows; ++r)
+      if (d.regime[static_cast<std::size_t>(r)] == j.regime1 ||
+          d.regime[static_cast<std::size_t>(r)] == j.regime2)
+        j.rows.push_back(r);
+    if (!interventions.contains(joint) || interventions[joint].size() != 2)
+      throw std::invalid_argument(manifest.string() +
+                                  ": metadata.distribution.interventions has no two entries for '" +
+                                  joint + "'");
+    j.bayes_accuracy = bayes_accuracy(
+        TruncatedNormal::from_json(interventions[joint][0], "interventions." + joint + "[0]"),
+        TruncatedNormal::from_json(interventions[joint][1], "interventions." + joint + "[1]"));
+    d.joints.push_back(std::move(j));
+  }
+  // held-out anchors for the LDRs' early stopping: a seeded fraction of the distinct anchors
+  std::set<std::int64_t> distinct(d.anchor.begin(), d.anchor.end());
+  const std::vector<std::int64_t> all(distinct.begin(), distinct.end());
+  const std::vector<std::int64_t> order = nn::shuffled_indices(
+      static_cast<std::int64_t>(all.size()), derive_seed(seed, "ldr.held_out"), 0);
+  const std::size_t held = static_cast<std::size_t>(
+      config.ldr_training.held_out_fraction * static_cast<double>(all.size()) + 0.5);
+  for (std::size_t i = 0; i < held && i < order.size(); ++i)
+    d.held_out_anchors.insert(all[static_cast<std::size_t>(order[i])]);
+  const std::int64_t side = config.ae1.code_size();
+  d.code_shape = {config.code_channels(), side, side};
+  return d;
+}
+
+void TrainingData::load_codes(const fs::path& path) {
+  const nn::NpyArray a = nn::read_npy(path);
+  const std::vector<std::int64_t> want{rows, code_shape[0], code_shape[1], code_shape[2]};
+  if (a.dtype != nn::DType::kF32 || a.shape != want)
+    throw nn::FileFormatError(path.string() +
+                              ": codes of another shape or dtype than this run's "
+                              "(expected f32 [rows, C, side, side]); remove it to encode again");
+  codes.resize(static_cast<std::size_t>(a.element_count()));
+  std::memcpy(codes.data(), a.data.data(), codes.size() * 4);
+}
+
+nn::Tensor TrainingData::codes_of(const std::vector<std::int64_t>& picked) const {
+  return gather_rows(codes, code_shape, picked);
+}
+
+nn::Tensor TrainingData::labels_of(const std::vector<std::int64_t>& picked,
+                                   std::int32_t positive) const {
+  std::vector<float> v;
+  v.reserve(picked.size());
+  for (std::int64_t r : picked)
+    v.push_back(regime[static_cast<std::size_t>(r)] == positive ? 1.0f : 0.0f);
+  return nn::Tensor(nn::Shape{static_cast<std::int64_t>(picked.size())}, v);
+}
+
+ScoreTable ScoreTable::compute(const ExperimentConfig& config, const TrainingData& data,
+                               const fs::path& run_dir) {
+  ScoreTable t;
+  t.code_shape = data.code_shape;
+  const std::int64_t per = data.code_shape[0] * data.code_shape[1] * data.code_shape[2];
+  for (const JointRegimes& joint : data.joints) {
+    Ldr ldr(config.ldr);
+    nn::load_module(ldr, ldr_file(run_dir, joint.name));
+    std::vector<std::int64_t> rows;
+    if (config.ae2_training.score_samples == "all")
+      for (std::int64_t r = 0; r < data.rows; ++r)
+        rows.push_back(r);
+    else
+      rows = joint.rows;
+    std::vector<float> values(static_cast<std::size_t>(per) * rows.size());
+    for (std::size_t b = 0; b < rows.size(); b += 512) {
+      const std::vector<std::int64_t> part(
+          rows.begin() + static_cast<std::ptrdiff_t>(b),
+          rows.begin() + static_cast<std::ptrdiff_t>(std::min(rows.size(), b + 512)));
+      nn::Tensor y = data.codes_of(part);
+      y.set_requires_grad(true);
+      nn::Tensor v = nn::grad({nn::sum(ldr(y))}, {y})[0];
+      if (config.ae2_training.score_normalization == "unit")
+        v = unit_length_rows(v);
+      std::copy_n(v.data(), v.numel(), values.data() + b * static_cast<std::size_t>(per));
+    }
+    t.rows.push_back(std::move(rows));
+    t.values.push_back(std::move(values));
+  }
+  return t;
+}
+
+std::vector<std::int64_t> ScoreTable::dataset_rows(std::size_t joint,
+                                                   const std::vector<std::int64_t>& picked) const {
+  std::vector<std::int64_t> out;
+  out.reserve(picked.size());
+  for (std::int64_t j : picked)
+    out.push_back(rows[joint][static_cast<std::size_t>(j)]);
+  return out;
+}
+
+nn::Tensor ScoreTable::scores_of(std::size_t joint, const std::vector<std::int64_t>& picked) const {
+  return gather_rows(values[joint], code_shape, picked);
+}
+
+}  // namespace ropes::crl::detail

@@ -1,0 +1,146 @@
+#include "ropes_crl/sparsity_objective.hpp"
+
+#include <ropes_nn/ops.hpp>
+#include <ropes_nn/philox.hpp>
+#include <ropes_nn/train_step.hpp>
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Core>
+
+#include <cmath>
+
+using namespace ropes::crl;
+using ropes::nn::Shape;
+using ropes::nn::Tensor;
+
+namespace {
+
+Tensor normal(const Shape& s, std::uint64_t stream, float scale = 1.0f) {
+  ropes::nn::PhiloxStream rng(99, stream);
+  std::vector<float> v(static_cast<std::size_t>(s.numel()));
+  for (float& x : v)
+    x = scale * static_cast<float>(rng.normal());
+  return Tensor(s, v);
+}
+
+struct Fixture {
+  std::unique_ptr<Ae2> net;
+  Ae2Batch batch;
+};
+
+// a small AE2 (MLP, SiLU: smooth, so central differences converge) and one batch with two
+// sparsity terms, targets 0 and 2
+Fixture make(const std::string& normalization) {
+  Ae2Spec s;
+  s.kind = "mlp";
+  s.widths = {8};
+  s.activation = "silu";
+  s.latent_dim = 4;
+  Fixture f;
+  f.net = std::make_unique<Ae2>(s);
+  f.net->initialize(5);
+  f.batch.reconstruction = normal(Shape{5, 1, 8, 8}, 1);
+  for (int k = 0; k < 2; ++k) {
+    f.batch.term_codes.push_back(normal(Shape{6, 1, 8, 8}, 10 + k));
+    Tensor v = normal(Shape{6, 1, 8, 8}, 20 + k, 0.3f);
+    f.batch.term_scores.push_back(normalization == "unit" ? unit_length_rows(v) : v);
+  }
+  f.batch.targets = {0, 2};
+  return f;
+}
+
+// the loss in double precision from the pieces: mean reconstruction error, then the
+// reference score_sparsity_loss of the J_g^T v rows (independent of the autodiff outer)
+double reference_loss(Fixture& f, double lambda, SparsityNorm norm) {
+  ropes::nn::GradModeGuard no_grad(true);
+  const Tensor y = f.batch.reconstruction;
+  const Tensor err = ropes::nn::square(ropes::nn::sub((*f.net)(y), y));
+  double recon = 0;
+  for (std::int64_t i = 0; i < err.numel(); ++i)
+    recon += err.data()[i];
+  double loss = recon / static_cast<double>(err.numel());
+  for (std::size_t k = 0; k < f.batch.term_codes.size(); ++k) {
+    const Tensor j =
+        latent_score_differences(*f.net, f.batch.term_codes[k], f.batch.term_scores[k], false);
+    Eigen::MatrixXd rows(j.shape()[0], j.shape()[1]);
+    for (std::int64_t r = 0; r < rows.rows(); ++r)
+      for (std::int64_t c = 0; c < rows.cols(); ++c)
+        rows(r, c) = j.data()[r * rows.cols() + c];
+    loss += lambda * score_sparsity_loss(rows, static_cast<int>(f.batch.targets[k]), norm);
+  }
+  return loss;
+}
+
+}  // namespace
+
+// The gradient the training step uses (two phases over 2 micro-batches) against central
+// finite differences of the double-precision reference loss, every parameter entry, for
+// both norms and both score normalisations.
+TEST(SparsityObjective, GradientMatchesFiniteDifferences) {
+  for (const SparsityNorm norm : {SparsityNorm::kL2Squared, SparsityNorm::kL1}) {
+    for (const std::string normalization : {"none", "unit"}) {
+      Fixture f = make(normalization);
+      const double lambda = 0.7;
+      std::size_t parts = 0;
+      const ropes::nn::BatchLoss loss = ae2_batch_loss(*f.net, f.batch, lambda, norm, 9, &parts);
+      ASSERT_EQ(parts, 2u);
+      const std::vector<Tensor> params = f.net->parameters();
+      const ropes::nn::BatchGradient g = ropes::nn::batch_gradient(params, loss, parts);
+      EXPECT_NEAR(g.loss, reference_loss(f, lambda, norm), 1e-5 * std::fabs(g.loss));
+      const double h = 1e-3;
+      double worst = 0;
+      std::size_t checked = 0;
+      for (std::size_t p = 0; p < params.size(); ++p) {
+        Tensor t = params[p];
+        for (std::int64_t i = 0; i < t.numel(); ++i) {
+          const float saved = t.data()[i];
+          t.mutable_data()[i] = saved + static_cast<float>(h);
+          const double up = reference_loss(f, lambda, norm);
+          t.mutable_data()[i] = saved - static_cast<float>(h);
+          const double down = reference_loss(f, lambda, norm);
+          t.mutable_data()[i] = saved;
+          const double numeric = (up - down) / (2 * h);
+          const double analytic = g.grads[p].data()[i];
+          const double err = std::fabs(analytic - numeric);
+          worst = std::max(worst, err);
+          EXPECT_LE(err, 2e-3 + 2e-2 * std::fabs(numeric))
+              << to_string(norm) << ", " << normalization << ": parameter " << p << " entry " << i
+              << ": analytic " << analytic << ", finite differences " << numeric;
+          ++checked;
+        }
+      }
+      std::printf("%s, %s: %zu entries, max |analytic - numeric| %.2e\n", to_string(norm),
+                  normalization.c_str(), checked, worst);
+    }
+  }
+}
+
+// the batch mean sits inside the norm: any micro-batch split gives the whole-batch gradient
+TEST(SparsityObjective, MicroBatchesGiveTheWholeBatchGradient) {
+  Fixture f = make("unit");
+  const std::vector<Tensor> params = f.net->parameters();
+  std::size_t one = 0, many = 0;
+  const ropes::nn::BatchLoss whole_loss =
+      ae2_batch_loss(*f.net, f.batch, 1.0, SparsityNorm::kL2Squared, 100, &one);
+  const ropes::nn::BatchLoss split_loss =
+      ae2_batch_loss(*f.net, f.batch, 1.0, SparsityNorm::kL2Squared, 4, &many);
+  const auto whole = ropes::nn::batch_gradient(params, whole_loss, one);
+  const auto split = ropes::nn::batch_gradient(params, split_loss, many);
+  ASSERT_EQ(one, 1u);
+  ASSERT_EQ(many, 5u);  // 17 rows, at most 4 a part
+  EXPECT_NEAR(whole.loss, split.loss, 1e-5 * whole.loss);
+  for (std::size_t p = 0; p < params.size(); ++p)
+    for (std::int64_t i = 0; i < params[p].numel(); ++i)
+      EXPECT_NEAR(whole.grads[p].data()[i], split.grads[p].data()[i], 1e-5)
+          << "parameter " << p << " entry " << i;
+}
+
+TEST(SparsityObjective, UnitLengthRowsAndPenalty) {
+  const Tensor v(Shape{2, 2}, {3.0f, 4.0f, 0.0f, 0.0f});
+  EXPECT_EQ(unit_length_rows(v).to_vector(), (std::vector<float>{0.6f, 0.8f, 0.0f, 0.0f}));
+  const Tensor m(Shape{3}, {0.5f, 0.25f, 1.0f});
+  EXPECT_FLOAT_EQ(sparsity_penalty(m, 0, SparsityNorm::kL2Squared).item(), 0.25f + 0.0625f + 1.0f);
+  EXPECT_FLOAT_EQ(sparsity_penalty(m, 2, SparsityNorm::kL1).item(), 0.75f);
+  EXPECT_THROW(sparsity_penalty(m, 3, SparsityNorm::kL1), std::invalid_argument);
+}

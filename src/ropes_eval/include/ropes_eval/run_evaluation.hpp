@@ -1,0 +1,60 @@
+#pragma once
+/// @file run_evaluation.hpp
+/// The first evaluation of a trained run (what `ropes-eval --run RUN --data DIR` prints):
+/// on the observational samples of a dataset the run did not train on, per joint
+///   - MCC: |Pearson| of latent k and joint k on the test half (the paper's measure),
+///   - MSE (rad^2) of the affine calibration of joint k from latent k, fitted on the
+///     calibration half and measured on the test half,
+/// beside the baselines (the lambda = 0 AE2's latent k; LDR_k(y), the classifier's logit)
+/// and the diagnostics (supervised probes from Y to each joint — a linear one and a small MLP,
+/// fitted on the calibration half — and the LDR's held-out accuracy against Bayes). Labels
+/// (the angles) are read here only.
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace ropes::eval {
+
+struct RunEvaluationOptions {
+  double calibration_fraction = 0.5;  ///< of the observational samples, drawn by seed
+  std::uint64_t seed = 0;
+  std::int64_t probe_steps = 3000;  ///< MLP probe training steps (0: no MLP probe)
+  /// paper_results.json (the paper's table); empty: the installed one.
+  std::filesystem::path paper_results;
+};
+
+/// One method's numbers per joint.
+struct MethodScores {
+  std::string method;
+  std::vector<double> mcc, mse;
+};
+
+struct RunEvaluation {
+  std::string run_dir, data_dir, config_name, setting, dataset_id, train_dataset_id;
+  std::vector<std::string> joints;
+  std::int64_t calibration_samples = 0, test_samples = 0;
+  std::vector<MethodScores> methods;  ///< "ropes" first, then the baselines
+  std::vector<double> probe_linear_mse, probe_mlp_mse, angle_variance;
+  std::vector<double> ldr_accuracy, bayes_accuracy;
+  std::vector<double> paper_mcc, paper_mse;  ///< NaN where the paper gives none
+  nlohmann::json calibration;                ///< ropes' affine fit (an Estimator Calibration)
+  nlohmann::json to_json() const;
+  /// The per-joint table, plain text, ROPES beside the paper and the baselines.
+  std::string table() const;
+};
+
+/// Evaluates the run in `run_dir` on the dataset in `data_dir`. Throws std::invalid_argument
+/// when `data_dir` is the dataset the run trained on (same dataset id), when it lacks a
+/// joint of the run or observational samples, or when its images differ from the run's
+/// (cameras, size); nn::FileFormatError for unreadable files.
+RunEvaluation evaluate_run(const std::filesystem::path& run_dir,
+                           const std::filesystem::path& data_dir,
+                           const RunEvaluationOptions& options = {});
+
+/// The installed paper_results.json.
+std::filesystem::path installed_paper_results();
+
+}  // namespace ropes::eval

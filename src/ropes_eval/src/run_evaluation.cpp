@@ -1,0 +1,380 @@
+#include "ropes_eval/run_evaluation.hpp"
+
+#include <ropes_crl/estimator.hpp>
+#include <ropes_nn/adam.hpp>
+#include <ropes_nn/dataset.hpp>
+#include <ropes_nn/layers.hpp>
+#include <ropes_nn/ops.hpp>
+#include <ropes_nn/train_step.hpp>
+
+#include <Eigen/Dense>
+
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+#include "ropes_eval/correlation.hpp"
+
+namespace ropes::eval {
+
+namespace fs = std::filesystem;
+using nn::Shape;
+using nn::Tensor;
+
+namespace {
+
+nlohmann::json read_json(const fs::path& path) {
+  std::ifstream in(path);
+  if (!in)
+    throw nn::FileFormatError(path.string() + ": cannot be opened");
+  std::stringstream text;
+  text << in.rdbuf();
+  const nlohmann::json j = nlohmann::json::parse(text.str(), nullptr, false);
+  if (j.is_discarded())
+    throw nn::FileFormatError(path.string() + ": not valid JSON");
+  return j;
+}
+
+Eigen::MatrixXd to_matrix(const Tensor& t) {
+  const std::int64_t n = t.shape()[0], k = t.numel() / std::max<std::int64_t>(n, 1);
+  Eigen::MatrixXd m(n, k);
+  for (std::int64_t i = 0; i < n; ++i)
+    for (std::int64_t j = 0; j < k; ++j)
+      m(i, j) = t.data()[i * k + j];
+  return m;
+}
+
+// least squares of y on [x, 1]: the affine fit, and its MSE on (x_test, y_test)
+struct Affine {
+  double scale = 0, offset = 0;
+};
+Affine fit_affine(const Eigen::VectorXd& x, const Eigen::VectorXd& y) {
+  const double mx = x.mean(), my = y.mean();
+  const double sxx = (x.array() - mx).square().sum();
+  Affine a;
+  a.scale = sxx > 0 ? ((x.array() - mx) * (y.array() - my)).sum() / sxx : 0.0;
+  a.offset = my - a.scale * mx;
+  return a;
+}
+double affine_mse(const Affine& a, const Eigen::VectorXd& x, const Eigen::VectorXd& y) {
+  return ((a.scale * x.array() + a.offset) - y.array()).square().mean();
+}
+
+// per-joint |Pearson| on the test rows and calibrated MSE (fit on calibration rows)
+MethodScores score_method(const std::string& name, const Eigen::MatrixXd& latents,
+                          const Eigen::MatrixXd& angles, const std::vector<Eigen::Index>& cal,
+                          const std::vector<Eigen::Index>& test, nlohmann::json* fit = nullptr) {
+  MethodScores s{name, {}, {}};
+  const Eigen::MatrixXd lt = latents(test, Eigen::all), at = angles(test, Eigen::all);
+  const Eigen::MatrixXd lc = latents(cal, Eigen::all), ac = angles(cal, Eigen::all);
+  for (Eigen::Index k = 0; k < angles.cols(); ++k) {
+    double r = std::numeric_limits<double>::quiet_NaN();
+    try {
+      r = std::fabs(pearson(lt.col(k), at.col(k)));
+    } catch (const std::invalid_argument&) {
+      // a constant latent: no correlation (reported as NaN, "-" in the table)
+    }
+    const Affine a = fit_affine(lc.col(k), ac.col(k));
+    s.mcc.push_back(r);
+    s.mse.push_back(affine_mse(a, lt.col(k), at.col(k)));
+    if (fit != nullptr) {
+      (*fit)["scale"].push_back(a.scale);
+      (*fit)["offset"].push_back(a.offset);
+    }
+  }
+  return s;
+}
+
+// ridge regression of each joint on [Y, 1] (lambda 1e-3, Y standardised): test MSE
+std::vector<double> linear_probe(const Eigen::MatrixXd& y, const Eigen::MatrixXd& angles,
+                                 const std::vector<Eigen::Index>& cal,
+                                 const std::vector<Eigen::Index>& test) {
+  const Eigen::MatrixXd yc = y(cal, Eigen::all);
+  const Eigen::RowVectorXd mu = yc.colwise().mean();
+  Eigen::RowVectorXd sd = ((yc.rowwise() - mu).array().square().colwise().mean()).sqrt();
+  sd = (sd.array() > 1e-8).select(sd, 1.0);
+  auto design = [&](const Eigen::MatrixXd& m) {
+    Eigen::MatrixXd x(m.rows(), m.cols() + 1);
+    x.leftCols(m.cols()) = (m.rowwise() - mu).array().rowwise() / sd.array();
+    x.col(m.cols()).setOnes();
+    return x;
+  };
+  const Eigen::MatrixXd xc = design(yc), xt = design(y(test, Eigen::all));
+  Eigen::MatrixXd gram = xc.transpose() * xc;
+  gram.diagonal().array() += 1e-3 * static_cast<double>(xc.rows());
+  const Eigen::MatrixXd w = gram.ldlt().solve(xc.transpose() * angles(cal, Eigen::all));
+  const Eigen::MatrixXd err = xt * w - angles(test, Eigen::all);
+  std::vector<double> out;
+  for (Eigen::Index k = 0; k < err.cols(); ++k)
+    out.push_back(err.col(k).array().square().mean());
+  return out;
+}
+
+// a small MLP from Y to all joints (Y -> 128 -> 128 -> J, ReLU, standardised targets),
+// Adam 1e-3, batches of 64 drawn by seed: test MSE per joint
+std::vector<double> mlp_probe(const Eigen::MatrixXd& y, const Eigen::MatrixXd& angles,
+                              const std::vector<Eigen::Index>& cal,
+                              const std::vector<Eigen::Index>& test, std::int64_t steps,
+                              std::uint64_t seed) {
+  const std::int64_t in = y.cols(), j = angles.cols();
+  nn::Sequential net;
+  net.add(std::make_shared<nn::Dense>(in, 128));
+  net.add(std::make_shared<nn::ReLU>());
+  net.add(std::make_shared<nn::Dense>(128, 128));
+  net.add(std::make_shared<nn::ReLU>());
+  net.add(std::make_shared<nn::Dense>(128, j));
+  net.initialize(seed);
+  const Eigen::RowVectorXd ymu = y(cal, Eigen::all).colwise().mean();
+  Eigen::RowVectorXd ysd =
+      ((y(cal, Eigen::all).rowwise() - ymu).array().square().colwise().mean()).sqrt();
+  ysd = (ysd.array() > 1e-8).select(ysd, 1.0);
+  const Eigen::RowVectorXd amu = angles(cal, Eigen::all).colwise().mean();
+  const Eigen::RowVectorXd asd =
+      ((angles(cal, Eigen::all).rowwise() - amu).array().square().colwise().mean()).sqrt();
+  auto tensor_of = [](const Eigen::MatrixXd& m) {
+    std::vector<float> v(static_cast<std::size_t>(m.size()));
+    for (Eigen::Index r = 0; r < m.rows(); ++r)
+      for (Eigen::Index c = 0; c < m.cols(); ++c)
+        v[static_cast<std::size_t>(r * m.cols() + c)] = static_cast<float>(m(r, c));
+    return Tensor(Shape{m.rows(), m.cols()}, v);
+  };
+  const Eigen::MatrixXd xs = (y.rowwise() - ymu).array().rowwise() / ysd.array();
+  const Eigen::MatrixXd ts = (angles.rowwise() - amu).array().rowwise() / asd.array();
+  nn::Adam adam(net.named_parameters(), nn::AdamOptions{1e-3});
+  const std::int64_t n = static_cast<std::int64_t>(cal.size());
+  for (std::int64_t s = 0; s < steps; ++s) {
+    const std::vector<std::int64_t> order =
+        nn::shuffled_indices(n, seed, static_cast<std::uint64_t>(s * 64 / n));
+    std::vector<Eigen::Index> rows;
+    for (std::int64_t k = s * 64; k < (s + 1) * 64; ++k)
+      rows.push_back(cal[static_cast<std::size_t>(order[static_cast<std::size_t>(k % n)])]);
+    const Tensor x = tensor_of(xs(rows, Eigen::all)), t = tensor_of(ts(rows, Eigen::all));
+    nn::train_step(adam, nn::mean_loss([&](std::size_t) {
+                     return nn::mean(nn::square(nn::sub(net(x), t)), {1});
+                   }));
+  }
+  nn::GradModeGuard no_grad(false);
+  const Eigen::MatrixXd pred = to_matrix(net(tensor_of(xs(test, Eigen::all))));
+  std::vector<double> out;
+  for (Eigen::Index k = 0; k < j; ++k)
+    out.push_back(
+        ((pred.col(k).array() * asd(k) + amu(k)) - angles(test, Eigen::all).col(k).array())
+            .square()
+            .mean());
+  return out;
+}
+
+std::string fmt(double v, int digits = 3) {
+  if (!std::isfinite(v))
+    return "-";
+  char b[32];
+  std::snprintf(b, sizeof b, "%.*f", digits, v);
+  return b;
+}
+
+}  // namespace
+
+fs::path installed_paper_results() {
+  return fs::path(ROPES_EVAL_SHARE_DIR) / "paper_results.json";
+}
+
+RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
+                           const RunEvaluationOptions& options) {
+  RunEvaluation ev;
+  ev.run_dir = run_dir.string();
+  ev.data_dir = data_dir.string();
+  crl::Estimator estimator = crl::Estimator::load(run_dir);
+  const crl::ExperimentConfig& config = estimator.config();
+  const nlohmann::json run = read_json(run_dir / "run.json");
+  ev.config_name = config.name;
+  ev.setting = config.name.substr(0, config.name.rfind('-'));
+  ev.joints = config.joints;
+  ev.train_dataset_id = run.value("dataset", "");
+
+  // the test dataset: not the training set, the run's cameras and image size
+  const nn::DatasetReader reader = nn::DatasetReader::open(data_dir);
+  const fs::path manifest = data_dir / "manifest.json";
+  ev.dataset_id = read_json(manifest).value("dataset", "");
+  if (ev.dataset_id == ev.train_dataset_id)
+    throw std::invalid_argument(
+        data_dir.string() + " is the dataset the run trained on (dataset id " +
+        ev.dataset_id.substr(0, 12) + "...); evaluate on one generated with another --seed");
+  const std::vector<std::int64_t> shape = reader.column("images").row_shape;
+  if (shape != std::vector<std::int64_t>{config.cameras, config.image_size, config.image_size})
+    throw std::invalid_argument(manifest.string() + ": images of another shape than the run's (" +
+                                std::to_string(config.cameras) + " cameras of " +
+                                std::to_string(config.image_size) + "x" +
+                                std::to_string(config.image_size) + ")");
+  const nlohmann::json& names = reader.metadata_at("/joint_names");
+  std::vector<std::size_t> joint_column;
+  for (const std::string& j : config.joints) {
+    std::size_t c = names.size();
+    for (std::size_t i = 0; i < names.size(); ++i)
+      if (names[i] == j)
+        c = i;
+    if (c == names.size())
+      throw std::invalid_argument(manifest.string() + ": metadata.joint_names has no '" + j + "'");
+    joint_column.push_back(c);
+  }
+  const nlohmann::json& regimes = reader.metadata_at("/regimes");
+  std::int32_t observational = -1;
+  for (std::size_t r = 0; r < regimes.size(); ++r)
+    if (regimes[r].contains("joint") && regimes[r]["joint"].is_null())
+      observational = static_cast<std::int32_t>(r);
+  const nn::NpyArray regime = reader.read_rows("regime", 0, reader.rows());
+  std::vector<std::int64_t> rows;
+  for (std::int64_t r = 0; r < reader.rows(); ++r) {
+    std::int32_t g;
+    std::memcpy(&g, regime.data.data() + r * 4, 4);
+    if (g == observational)
+      rows.push_back(r);
+  }
+  if (rows.size() < 10)
+    throw std::invalid_argument(manifest.string() + ": " + std::to_string(rows.size()) +
+                                " observational samples; expected at least 10");
+
+  // latents of every observational sample, in chunks
+  const std::int64_t n = static_cast<std::int64_t>(rows.size()),
+                     jn = static_cast<std::int64_t>(config.joints.size());
+  const std::int64_t side = config.image_size, per = config.cameras * side * side;
+  Eigen::MatrixXd z(n, jn), z0(n, jn), logit(n, jn), angles(n, jn), y;
+  const nn::NpyArray angle_rows = reader.read_rows_at("angles", rows);
+  const std::int64_t angle_width = reader.column("angles").row_shape[0];
+  for (std::int64_t b = 0; b < n; b += 256) {
+    const std::int64_t m = std::min<std::int64_t>(256, n - b);
+    const std::vector<std::int64_t> part(rows.begin() + b, rows.begin() + b + m);
+    const nn::NpyArray raw = reader.read_rows_at("images", part);
+    nn::Buffer x(static_cast<std::size_t>(m * per));
+    for (std::size_t i = 0; i < x.size(); ++i)
+      x[i] = static_cast<float>(raw.data[i]) / 255.0f;
+    const Tensor codes =
+        estimator.codes(Tensor(Shape{m, config.cameras, side, side}, std::move(x)));
+    const Eigen::MatrixXd yc = to_matrix(codes);
+    if (y.size() == 0)
+      y.resize(n, yc.cols());
+    y.middleRows(b, m) = yc;
+    z.middleRows(b, m) = to_matrix(estimator.latents_from_codes(codes));
+    logit.middleRows(b, m) = to_matrix(estimator.ldr_logits_from_codes(codes));
+    if (estimator.has_lambda0())
+      z0.middleRows(b, m) = to_matrix(estimator.lambda0_latents_from_codes(codes));
+  }
+  for (std::int64_t i = 0; i < n; ++i)
+    for (std::int64_t k = 0; k < jn; ++k) {
+      float a;
+      std::memcpy(&a,
+                  angle_rows.data.data() +
+                      (i * angle_width +
+                       static_cast<std::int64_t>(joint_column[static_cast<std::size_t>(k)])) *
+                          4,
+                  4);
+      angles(i, k) = a;
+    }
+
+  // calibration and test halves, by seed
+  const std::vector<std::int64_t> order = nn::shuffled_indices(n, options.seed, 0);
+  const std::int64_t nc = std::max<std::int64_t>(
+      2,
+      std::min<std::int64_t>(n - 2, static_cast<std::int64_t>(options.calibration_fraction * n)));
+  std::vector<Eigen::Index> cal, test;
+  for (std::int64_t i = 0; i < n; ++i)
+    (i < nc ? cal : test).push_back(static_cast<Eigen::Index>(order[static_cast<std::size_t>(i)]));
+  ev.calibration_samples = nc;
+  ev.test_samples = n - nc;
+
+  nlohmann::json fit = {{"joints", config.joints},
+                        {"scale", nlohmann::json::array()},
+                        {"offset", nlohmann::json::array()}};
+  ev.methods.push_back(score_method("ropes", z, angles, cal, test, &fit));
+  ev.calibration = fit;
+  if (estimator.has_lambda0())
+    ev.methods.push_back(score_method("lambda0_autoencoder", z0, angles, cal, test));
+  ev.methods.push_back(score_method("ldr_logit", logit, angles, cal, test));
+  ev.probe_linear_mse = linear_probe(y, angles, cal, test);
+  if (options.probe_steps > 0)
+    ev.probe_mlp_mse = mlp_probe(y, angles, cal, test, options.probe_steps, options.seed);
+  for (std::int64_t k = 0; k < jn; ++k) {
+    const Eigen::VectorXd a = angles(test, Eigen::all).col(k);
+    ev.angle_variance.push_back((a.array() - a.mean()).square().mean());
+    const nlohmann::json& l = run.contains("ldr") ? run["ldr"] : nlohmann::json::object();
+    const std::string& j = config.joints[static_cast<std::size_t>(k)];
+    ev.ldr_accuracy.push_back(l.contains(j) ? l[j].value("held_out_accuracy", NAN) : NAN);
+    ev.bayes_accuracy.push_back(l.contains(j) ? l[j].value("bayes_accuracy", NAN) : NAN);
+  }
+
+  // the paper's numbers for this setting
+  const nlohmann::json paper =
+      read_json(options.paper_results.empty() ? installed_paper_results() : options.paper_results);
+  for (const std::string& j : config.joints) {
+    const nlohmann::json* p = nullptr;
+    if (paper["settings"].contains(ev.setting) && paper["settings"][ev.setting].contains(j))
+      p = &paper["settings"][ev.setting][j];
+    ev.paper_mcc.push_back(p ? (*p)["mcc"].get<double>() : NAN);
+    ev.paper_mse.push_back(p ? (*p)["mse"].get<double>() : NAN);
+  }
+  return ev;
+}
+
+nlohmann::json RunEvaluation::to_json() const {
+  auto nums = [](const std::vector<double>& v) {
+    nlohmann::json a = nlohmann::json::array();
+    for (double x : v)
+      a.push_back(std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr));
+    return a;
+  };
+  nlohmann::json by_method = nlohmann::json::object();
+  for (const MethodScores& m : methods)
+    by_method[m.method] = {{"mcc", nums(m.mcc)}, {"mse", nums(m.mse)}};
+  return {{"format", "ropes-eval-results"},
+          {"format_version", 1},
+          {"run", run_dir},
+          {"data", data_dir},
+          {"config", config_name},
+          {"setting", setting},
+          {"dataset", dataset_id},
+          {"train_dataset", train_dataset_id},
+          {"joints", joints},
+          {"samples", {{"calibration", calibration_samples}, {"test", test_samples}}},
+          {"methods", by_method},
+          {"diagnostics",
+           {{"probe_linear_mse", nums(probe_linear_mse)},
+            {"probe_mlp_mse", nums(probe_mlp_mse)},
+            {"angle_variance", nums(angle_variance)},
+            {"ldr_held_out_accuracy", nums(ldr_accuracy)},
+            {"ldr_bayes_accuracy", nums(bayes_accuracy)}}},
+          {"paper", {{"mcc", nums(paper_mcc)}, {"mse", nums(paper_mse)}}},
+          {"calibration", calibration},
+          {"notes",
+           "mcc: |Pearson| of latent k and joint k on the test samples; mse: rad^2 of the affine "
+           "fit of joint k from latent k, fitted on the calibration samples, on the test samples"}};
+}
+
+std::string RunEvaluation::table() const {
+  std::ostringstream out;
+  out << "ropes-eval: " << config_name << ", " << test_samples << " test and "
+      << calibration_samples << " calibration samples (observational, dataset "
+      << dataset_id.substr(0, 12) << ")\n";
+  out << "| joint | MCC | MSE rad^2 | paper MCC | paper MSE |";
+  for (std::size_t m = 1; m < methods.size(); ++m)
+    out << " " << methods[m].method << " MCC |";
+  out << " probe MSE linear / MLP | angle var | LDR acc / Bayes |\n";
+  out << "| --- | --- | --- | --- | --- |";
+  for (std::size_t m = 1; m < methods.size(); ++m)
+    out << " --- |";
+  out << " --- | --- | --- |\n";
+  for (std::size_t k = 0; k < joints.size(); ++k) {
+    out << "| " << joints[k] << " | " << fmt(methods[0].mcc[k]) << " | " << fmt(methods[0].mse[k])
+        << " | " << fmt(paper_mcc[k]) << " | " << fmt(paper_mse[k]) << " |";
+    for (std::size_t m = 1; m < methods.size(); ++m)
+      out << " " << fmt(methods[m].mcc[k]) << " |";
+    out << " " << fmt(probe_linear_mse[k], 4) << " / "
+        << (probe_mlp_mse.empty() ? "-" : fmt(probe_mlp_mse[k], 4)) << " | "
+        << fmt(angle_variance[k]) << " | " << fmt(ldr_accuracy[k]) << " / "
+        << fmt(bayes_accuracy[k]) << " |\n";
+  }
+  return out.str();
+}
+
+}  // namespace ropes::eval
