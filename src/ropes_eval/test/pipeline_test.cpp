@@ -280,6 +280,21 @@ TEST_F(Pipeline, BadInputIsRefusedClearly) {
   EXPECT_NE(o.text.find("has not finished training"), std::string::npos) << o.text;
 }
 
+// --sweep-lambda x --sweep-seeds: one complete run per pair, each with its lambda and seed
+TEST_F(Pipeline, SweepTrainsOneRunPerLambdaAndSeed) {
+  const fs::path out = dir_ / "sweep";
+  const Output o = train(out.string(), "--sweep-lambda 0.5,2 --sweep-seeds 3,4");
+  ASSERT_EQ(o.rc, 0) << o.text;
+  for (const char* lambda : {"0.5", "2"})
+    for (const char* seed : {"3", "4"}) {
+      const fs::path run_dir = out / ("lambda-" + std::string(lambda) + "_seed-" + seed);
+      const nlohmann::json r = json_of(run_dir / "run.json");
+      EXPECT_TRUE(r.value("complete", false)) << run_dir;
+      EXPECT_EQ(r["seed"], std::stoi(seed));
+      EXPECT_EQ(r["config"]["ae2"]["lambda"], std::stod(lambda));
+    }
+}
+
 // The `paper` preset cannot finish on a CPU, but it starts, logs, checkpoints and resumes:
 // AE1 at the appendix's full size on 128x128 images, batches of 2 (its micro-batch size
 // here), one checkpoint a step, a SIGKILL after the first, a resume to the end of stage 1.
