@@ -128,9 +128,13 @@ Tensor column(const Tensor& z, std::int64_t k) {
 
 Tensor Estimator::latents_from_codes(const Tensor& y) {
   nn::GradModeGuard no_grad(false);
+  const std::int64_t j = static_cast<std::int64_t>(joints().size());
+  // joint mode: one AE2, its first J latents; per_joint: latent k of joint k's AE2
+  if (state_->ae2.size() == 1)
+    return nn::slice(state_->ae2[0]->encode(y), 1, 0, j);
   std::vector<Tensor> cols;
-  for (std::size_t k = 0; k < joints().size(); ++k)
-    cols.push_back(column(full_latents_from_codes(y, k), static_cast<std::int64_t>(k)));
+  for (std::int64_t k = 0; k < j; ++k)
+    cols.push_back(column(state_->ae2[static_cast<std::size_t>(k)]->encode(y), k));
   return nn::concat(cols, 1);
 }
 

@@ -49,13 +49,18 @@ std::map<std::string, std::string> network_metadata(const std::string& kind,
   return {{kNetworkKey, net.dump()}, {kConfigKey, config.to_json().dump()}};
 }
 
-// a loss or gradient that is not finite: name the stage and the step, keep the checkpoint
-[[noreturn]] void fail_step(const std::string& stage, std::int64_t step, const std::string& why,
-                            const fs::path& checkpoint) {
-  throw std::runtime_error("stage " + stage + ", step " + std::to_string(step) + ": " + why +
-                           (fs::exists(checkpoint)
-                                ? "; the last checkpoint " + checkpoint.string() + " is kept"
+// one update; a loss or gradient that is not finite names the stage and the step and keeps
+// the last checkpoint (train_step changes nothing when it refuses)
+nn::StepResult checked_step(nn::Adam& adam, const nn::BatchLoss& loss, const nn::StepOptions& so,
+                            const std::string& stage, const fs::path& checkpoint) {
+  try {
+    return nn::train_step(adam, loss, so);
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error(
+        "stage " + stage + ", step " + std::to_string(adam.steps() + 1) + ": " + e.what() +
+        (fs::exists(checkpoint) ? "; the last checkpoint " + checkpoint.string() + " is kept"
                                 : "; no checkpoint was written yet"));
+  }
 }
 
 // a log line (plain logs only) and the test hook, after each checkpoint
@@ -159,12 +164,7 @@ void train_ae1(const ExperimentConfig& config, const TrainingData& data, const f
     so.micro_batches = parts.size();
     so.schedule = &schedule;
     so.clip_norm = t.optimizer.clip_norm;
-    nn::StepResult r;
-    try {
-      r = nn::train_step(adam, loss, so);
-    } catch (const std::invalid_argument& e) {
-      fail_step("ae1", adam.steps() + 1, e.what(), checkpoint);
-    }
+    const nn::StepResult r = checked_step(adam, loss, so, "ae1", checkpoint);
     window_images += n;
     const std::int64_t step = adam.steps();
     if (step % config.log_every == 0 || step == t.steps) {
@@ -280,15 +280,9 @@ LdrOutcome train_ldr(const ExperimentConfig& config, const TrainingData& data,
       nn::StepOptions so;
       so.schedule = &schedule;
       so.clip_norm = t.optimizer.clip_norm;
-      try {
-        train_loss += nn::train_step(adam, nn::mean_loss([&](std::size_t) {
-                                       return nn::bce_with_logits_elementwise(net(y), labels);
-                                     }),
-                                     so)
-                          .loss;
-      } catch (const std::invalid_argument& e) {
-        fail_step("ldr " + joint.name, adam.steps() + 1, e.what(), weights);
-      }
+      const nn::BatchLoss loss = nn::mean_loss(
+          [&](std::size_t) { return nn::bce_with_logits_elementwise(net(y), labels); });
+      train_loss += checked_step(adam, loss, so, "ldr " + joint.name, weights).loss;
     }
     const auto [loss, accuracy] = ldr_evaluate(net, data, held_rows, joint.regime2);
     metrics.append({{"stage", "ldr"},
@@ -388,9 +382,7 @@ void train_ae2(const ExperimentConfig& config, const TrainingData& data, const S
     batch.reconstruction = data.codes_of(recon.rows(s));
     for (std::size_t i = 0; i < model.terms.size(); ++i) {
       const std::size_t k = model.terms[i];
-      std::vector<std::int64_t> picked;
-      for (std::int64_t j : term_samplers[i].rows(s))
-        picked.push_back(j);
+      const std::vector<std::int64_t> picked = term_samplers[i].rows(s);
       batch.term_codes.push_back(data.codes_of(scores.dataset_rows(k, picked)));
       batch.term_scores.push_back(scores.scores_of(k, picked));
       batch.targets.push_back(static_cast<std::int64_t>(k));
@@ -402,12 +394,7 @@ void train_ae2(const ExperimentConfig& config, const TrainingData& data, const S
     so.micro_batches = parts;
     so.schedule = &schedule;
     so.clip_norm = t.optimizer.clip_norm;
-    nn::StepResult r;
-    try {
-      r = nn::train_step(adam, loss, so);
-    } catch (const std::invalid_argument& e) {
-      fail_step(stage, s + 1, e.what(), checkpoint);
-    }
+    const nn::StepResult r = checked_step(adam, loss, so, stage, checkpoint);
     window_samples += r.samples;
     const std::int64_t step = adam.steps();
     std::string extra;

@@ -248,6 +248,13 @@ TEST_F(Pipeline, BadInputIsRefusedClearly) {
   EXPECT_NE(o.text.find("holds a run with another seed"), std::string::npos) << o.text;
   EXPECT_EQ(bytes_of(good / "ae2.panda_joint2.safetensors"), before);
 
+  // --set of a key the config lacks
+  o = train((dir_ / "misspelt").string(), "--set ae2.lambada=2");
+  EXPECT_EQ(o.rc, 2);
+  EXPECT_NE(o.text.find("--set ae2.lambada: the config has no 'lambada' there"), std::string::npos)
+      << o.text;
+  EXPECT_FALSE(fs::exists(dir_ / "misspelt"));
+
   // a loss that is not finite: the stage and step are named, the checkpoint is kept
   const fs::path nan = dir_ / "nan";
   o = train(nan.string(), "--set ae2.optimizer.lr=1e30");
