@@ -147,8 +147,9 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
     reject_unknown_keys(
         a2, "config.ae2",
         {"kind", "latent_dim", "widths", "decoder_widths", "blocks_per_stage", "activation", "mode",
-         "lambda", "sparsity_norm", "score_normalization", "score_samples", "batch_size",
-         "sparsity_batch_size", "steps", "micro_batch", "optimizer", "lambda0_baseline"});
+         "lambda", "sparsity_norm", "sparsity_diagonal", "score_normalization", "score_samples",
+         "batch_size", "sparsity_batch_size", "steps", "micro_batch", "optimizer",
+         "lambda0_baseline"});
     c.ae2.kind = get_string(a2, "config.ae2", "kind");
     c.ae2.in_channels = c.code_channels();
     c.ae2.input_size = side;
@@ -168,6 +169,8 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
     if (!(t.lambda >= 0))
       throw std::invalid_argument("config.ae2.lambda: expected >= 0, got " + a2["lambda"].dump());
     t.norm = parse_sparsity_norm(get_string(a2, "config.ae2", "sparsity_norm"));
+    if (a2.contains("sparsity_diagonal"))
+      t.diagonal = parse_sparsity_diagonal(get_string(a2, "config.ae2", "sparsity_diagonal"));
     t.score_normalization = get_string(a2, "config.ae2", "score_normalization");
     if (t.score_normalization != "none" && t.score_normalization != "unit")
       throw std::invalid_argument(

@@ -19,6 +19,19 @@ const char* to_string(SparsityNorm norm) {
   return norm == SparsityNorm::kL1 ? "l1" : "l2sq";
 }
 
+SparsityDiagonal parse_sparsity_diagonal(const std::string& name) {
+  if (name == "mean_abs")
+    return SparsityDiagonal::kMeanAbs;
+  if (name == "abs_mean")
+    return SparsityDiagonal::kAbsMean;
+  throw std::invalid_argument("sparsity_diagonal: '" + name +
+                              "' is not a form of the diagonal; expected 'mean_abs' or 'abs_mean'");
+}
+
+const char* to_string(SparsityDiagonal diagonal) {
+  return diagonal == SparsityDiagonal::kAbsMean ? "abs_mean" : "mean_abs";
+}
+
 Eigen::VectorXd mean_abs_score_difference(
     const Eigen::Ref<const Eigen::MatrixXd>& latent_score_diffs) {
   const Eigen::Index n = latent_score_diffs.rows();
@@ -44,7 +57,7 @@ Eigen::VectorXd mean_abs_score_difference(
 }
 
 double score_sparsity_loss(const Eigen::Ref<const Eigen::MatrixXd>& latent_score_diffs, int target,
-                           SparsityNorm norm) {
+                           SparsityNorm norm, SparsityDiagonal diagonal) {
   const Eigen::Index d = latent_score_diffs.cols();
   if (target < 0 || target >= d) {
     std::ostringstream message;
@@ -53,6 +66,8 @@ double score_sparsity_loss(const Eigen::Ref<const Eigen::MatrixXd>& latent_score
     throw std::invalid_argument(message.str());
   }
   Eigen::VectorXd residual = mean_abs_score_difference(latent_score_diffs);
+  if (diagonal == SparsityDiagonal::kAbsMean)
+    residual(target) = std::fabs(latent_score_diffs.col(target).mean());
   residual(target) -= 1.0;
   return norm == SparsityNorm::kL1 ? residual.lpNorm<1>() : residual.squaredNorm();
 }

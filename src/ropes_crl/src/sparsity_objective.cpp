@@ -33,14 +33,27 @@ Tensor unit_length_rows(const Tensor& v) {
   return Tensor(v.shape(), out);
 }
 
-Tensor sparsity_penalty(const Tensor& mean_abs, std::int64_t target, SparsityNorm norm) {
+Tensor sparsity_penalty(const Tensor& mean_abs, std::int64_t target, SparsityNorm norm,
+                        const Tensor& signed_mean) {
   const std::int64_t d = mean_abs.numel();
   if (target < 0 || target >= d)
     throw std::invalid_argument("sparsity_penalty: target latent " + std::to_string(target) +
                                 " is outside [0, " + std::to_string(d) + ")");
   std::vector<float> e(static_cast<std::size_t>(d), 0.0f);
   e[static_cast<std::size_t>(target)] = 1.0f;
-  const Tensor diff = nn::sub(nn::reshape(mean_abs, Shape{d}), Tensor(Shape{d}, e));
+  Tensor row = nn::reshape(mean_abs, Shape{d});
+  if (signed_mean.defined()) {
+    if (signed_mean.numel() != d)
+      throw std::invalid_argument("sparsity_penalty: signed mean has " +
+                                  std::to_string(signed_mean.numel()) + " entries, expected " +
+                                  std::to_string(d));
+    std::vector<float> off(e.size());
+    for (std::size_t i = 0; i < e.size(); ++i)
+      off[i] = 1.0f - e[i];
+    row = nn::add(nn::mul(row, Tensor(Shape{d}, off)),
+                  nn::mul(nn::abs(nn::reshape(signed_mean, Shape{d})), Tensor(Shape{d}, e)));
+  }
+  const Tensor diff = nn::sub(row, Tensor(Shape{d}, e));
   return norm == SparsityNorm::kL1 ? nn::sum(nn::abs(diff)) : nn::sum(nn::square(diff));
 }
 
@@ -68,7 +81,8 @@ Tensor join(const std::vector<Tensor>& pieces) {
 }  // namespace
 
 nn::BatchLoss ae2_batch_loss(Ae2& ae2, const Ae2Batch& batch, double lambda, SparsityNorm norm,
-                             std::int64_t micro_batch, std::size_t* micro_batches) {
+                             std::int64_t micro_batch, std::size_t* micro_batches,
+                             SparsityDiagonal diagonal) {
   const std::size_t terms = lambda > 0 ? batch.term_codes.size() : 0;
   if (batch.term_scores.size() != batch.term_codes.size() ||
       batch.targets.size() != batch.term_codes.size())
@@ -103,18 +117,21 @@ nn::BatchLoss ae2_batch_loss(Ae2& ae2, const Ae2Batch& batch, double lambda, Spa
 
   nn::BatchLoss loss;
   loss.outer_is_affine = terms == 0;
-  loss.statistics = [&ae2, &batch, parts, terms, d, scale_r, scale_k](std::size_t p,
-                                                                      bool create_graph) {
+  const bool with_signed = diagonal == SparsityDiagonal::kAbsMean;
+  loss.statistics = [&ae2, &batch, parts, terms, d, scale_r, scale_k, with_signed](
+                        std::size_t p, bool create_graph) {
     // rows of this part: [reconstruction | term 0 | term 1 | ...]
     const Tensor y_r = part_of(batch.reconstruction, p, parts);
-    std::vector<Tensor> jtv(terms);
+    std::vector<Tensor> jtv(terms), signed_jtv(terms);
     std::vector<std::int64_t> sizes{y_r.defined() ? y_r.shape()[0] : 0};
     for (std::size_t k = 0; k < terms; ++k) {
       const Tensor y = part_of(batch.term_codes[k], p, parts);
-      if (y.defined())
-        jtv[k] = nn::mul_scalar(nn::abs(latent_score_differences(
-                                    ae2, y, part_of(batch.term_scores[k], p, parts), create_graph)),
-                                scale_k[k]);
+      if (y.defined()) {
+        signed_jtv[k] = nn::mul_scalar(
+            latent_score_differences(ae2, y, part_of(batch.term_scores[k], p, parts), create_graph),
+            scale_k[k]);
+        jtv[k] = nn::abs(signed_jtv[k]);
+      }
       sizes.push_back(y.defined() ? y.shape()[0] : 0);
     }
     std::int64_t rows = 0;
@@ -132,15 +149,21 @@ nn::BatchLoss ae2_batch_loss(Ae2& ae2, const Ae2Batch& batch, double lambda, Spa
       const std::int64_t after = rows - before - sizes[k + 1];
       stats.push_back(join({before > 0 ? Tensor::zeros(Shape{before, d}) : Tensor(), jtv[k],
                             after > 0 ? Tensor::zeros(Shape{after, d}) : Tensor()}));
+      if (with_signed)
+        stats.push_back(
+            join({before > 0 ? Tensor::zeros(Shape{before, d}) : Tensor(), signed_jtv[k],
+                  after > 0 ? Tensor::zeros(Shape{after, d}) : Tensor()}));
       before += sizes[k + 1];
     }
     return stats;
   };
   const std::vector<std::int64_t> targets = batch.targets;
-  loss.outer = [terms, lambda, norm, targets](const std::vector<Tensor>& means) {
+  loss.outer = [terms, lambda, norm, targets, with_signed](const std::vector<Tensor>& means) {
     Tensor l = means[0];
+    const std::size_t per = with_signed ? 2 : 1;
     for (std::size_t k = 0; k < terms; ++k)
-      l = nn::add(l, nn::mul_scalar(sparsity_penalty(means[1 + k], targets[k], norm),
+      l = nn::add(l, nn::mul_scalar(sparsity_penalty(means[1 + per * k], targets[k], norm,
+                                                     with_signed ? means[2 + per * k] : Tensor()),
                                     static_cast<float>(lambda)));
     return l;
   };

@@ -389,7 +389,7 @@ void train_ae2(const ExperimentConfig& config, const TrainingData& data, const S
     }
     std::size_t parts = 1;
     const nn::BatchLoss loss =
-        ae2_batch_loss(net, batch, model.lambda, t.norm, t.micro_batch, &parts);
+        ae2_batch_loss(net, batch, model.lambda, t.norm, t.micro_batch, &parts, t.diagonal);
     nn::StepOptions so;
     so.micro_batches = parts;
     so.schedule = &schedule;
@@ -409,8 +409,9 @@ void train_ae2(const ExperimentConfig& config, const TrainingData& data, const S
           {"grad_norm", r.grad_norm},
           {"samples_per_s", static_cast<double>(window_samples) / seconds_since(window)}};
       nlohmann::json rows = nlohmann::json::object();
-      for (std::size_t i = 0; i + 1 < r.means.size(); ++i)
-        rows[config.joints[model.terms[i]]] = r.means[i + 1];
+      const std::size_t per = t.diagonal == SparsityDiagonal::kAbsMean ? 2 : 1;
+      for (std::size_t i = 0; 1 + per * i < r.means.size(); ++i)
+        rows[config.joints[model.terms[i]]] = r.means[1 + per * i];
       rec["sparsity_rows"] = rows;
       metrics.append(rec);
       window = Clock::now();

@@ -59,6 +59,9 @@ TEST(ExperimentConfig, ErrorsNameTheFileTheFieldAndTheValue) {
   j["ae2"]["sparsity_norm"] = "l3";
   EXPECT_NE(error_of(j).find("l3"), std::string::npos) << error_of(j);
   j = c.raw;
+  j["ae2"]["sparsity_diagonal"] = "signed";
+  EXPECT_NE(error_of(j).find("sparsity_diagonal: 'signed'"), std::string::npos) << error_of(j);
+  j = c.raw;
   j["ae2"]["latent_dim"] = 2;  // three joints need three latents
   EXPECT_NE(error_of(j).find("config.ae2.latent_dim: 2"), std::string::npos) << error_of(j);
   j = c.raw;

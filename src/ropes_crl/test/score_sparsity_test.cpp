@@ -28,6 +28,30 @@ TEST(ScoreSparsity, MatchesAHandWorkedExample) {
   EXPECT_DOUBLE_EQ(score_sparsity_loss(m, 0), 2.25);
 }
 
+// Witness: worked by hand. With the diagonal as |E[Delta s_i]|, target 1: |(-2 + 0) / 2| = 1
+// replaces E|Delta s_1| = 1, residual (2, 0, 0.5) as before; target 0: |(1 - 3) / 2| = 1,
+// residual (0, 1, 0.5): 1.25 squared, 1.5 in L1.
+TEST(ScoreSparsity, TheAbsoluteMeanDiagonalMatchesAHandWorkedExample) {
+  const Eigen::MatrixXd m = two_samples();
+  const auto abs_mean = SparsityDiagonal::kAbsMean;
+  EXPECT_DOUBLE_EQ(score_sparsity_loss(m, 1, SparsityNorm::kL2Squared, abs_mean), 4.25);
+  EXPECT_DOUBLE_EQ(score_sparsity_loss(m, 0, SparsityNorm::kL2Squared, abs_mean), 1.25);
+  EXPECT_DOUBLE_EQ(score_sparsity_loss(m, 0, SparsityNorm::kL1, abs_mean), 1.5);
+  // a latent whose response changes sign across samples is penalised: E|.| = 1, E[.] = 0
+  Eigen::MatrixXd folded = Eigen::MatrixXd::Zero(2, 2);
+  folded.col(0) << 1.0, -1.0;
+  EXPECT_EQ(score_sparsity_loss(folded, 0), 0.0);
+  EXPECT_DOUBLE_EQ(score_sparsity_loss(folded, 0, SparsityNorm::kL2Squared, abs_mean), 1.0);
+  EXPECT_EQ(parse_sparsity_diagonal("abs_mean"), abs_mean);
+  EXPECT_STREQ(to_string(parse_sparsity_diagonal("mean_abs")), "mean_abs");
+  try {
+    parse_sparsity_diagonal("signed");
+    ADD_FAILURE() << "accepted 'signed'";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("'signed'"), std::string::npos) << e.what();
+  }
+}
+
 TEST(ScoreSparsity, IsZeroExactlyForAOneSparseUnitScoreDifference) {
   Eigen::MatrixXd m = Eigen::MatrixXd::Zero(4, 3);
   m.col(2) << 1.0, -1.0, 0.5, -1.5;  // E|.| = 1 in latent 2 only

@@ -52,7 +52,7 @@ Fixture make(const std::string& normalization) {
 
 // the loss in double precision from the pieces: mean reconstruction error, then the
 // reference score_sparsity_loss of the J_g^T v rows (independent of the autodiff outer)
-double reference_loss(Fixture& f, double lambda, SparsityNorm norm) {
+double reference_loss(Fixture& f, double lambda, SparsityNorm norm, SparsityDiagonal diagonal) {
   ropes::nn::GradModeGuard no_grad(true);
   const Tensor y = f.batch.reconstruction;
   const Tensor err = ropes::nn::square(ropes::nn::sub((*f.net)(y), y));
@@ -67,7 +67,8 @@ double reference_loss(Fixture& f, double lambda, SparsityNorm norm) {
     for (std::int64_t r = 0; r < rows.rows(); ++r)
       for (std::int64_t c = 0; c < rows.cols(); ++c)
         rows(r, c) = j.data()[r * rows.cols() + c];
-    loss += lambda * score_sparsity_loss(rows, static_cast<int>(f.batch.targets[k]), norm);
+    loss +=
+        lambda * score_sparsity_loss(rows, static_cast<int>(f.batch.targets[k]), norm, diagonal);
   }
   return loss;
 }
@@ -76,42 +77,47 @@ double reference_loss(Fixture& f, double lambda, SparsityNorm norm) {
 
 // The gradient the training step uses (two phases over 2 micro-batches) against central
 // finite differences of the double-precision reference loss, every parameter entry, for
-// both norms and both score normalisations.
+// both norms, both score normalisations and both forms of the diagonal.
 TEST(SparsityObjective, GradientMatchesFiniteDifferences) {
   for (const SparsityNorm norm : {SparsityNorm::kL2Squared, SparsityNorm::kL1}) {
     for (const std::string normalization : {"none", "unit"}) {
-      Fixture f = make(normalization);
-      const double lambda = 0.7;
-      std::size_t parts = 0;
-      const ropes::nn::BatchLoss loss = ae2_batch_loss(*f.net, f.batch, lambda, norm, 9, &parts);
-      ASSERT_EQ(parts, 2u);
-      const std::vector<Tensor> params = f.net->parameters();
-      const ropes::nn::BatchGradient g = ropes::nn::batch_gradient(params, loss, parts);
-      EXPECT_NEAR(g.loss, reference_loss(f, lambda, norm), 1e-5 * std::fabs(g.loss));
-      const double h = 1e-3;
-      double worst = 0;
-      std::size_t checked = 0;
-      for (std::size_t p = 0; p < params.size(); ++p) {
-        Tensor t = params[p];
-        for (std::int64_t i = 0; i < t.numel(); ++i) {
-          const float saved = t.data()[i];
-          t.mutable_data()[i] = saved + static_cast<float>(h);
-          const double up = reference_loss(f, lambda, norm);
-          t.mutable_data()[i] = saved - static_cast<float>(h);
-          const double down = reference_loss(f, lambda, norm);
-          t.mutable_data()[i] = saved;
-          const double numeric = (up - down) / (2 * h);
-          const double analytic = g.grads[p].data()[i];
-          const double err = std::fabs(analytic - numeric);
-          worst = std::max(worst, err);
-          EXPECT_LE(err, 2e-3 + 2e-2 * std::fabs(numeric))
-              << to_string(norm) << ", " << normalization << ": parameter " << p << " entry " << i
-              << ": analytic " << analytic << ", finite differences " << numeric;
-          ++checked;
+      for (const SparsityDiagonal diagonal :
+           {SparsityDiagonal::kMeanAbs, SparsityDiagonal::kAbsMean}) {
+        Fixture f = make(normalization);
+        const double lambda = 0.7;
+        std::size_t parts = 0;
+        const ropes::nn::BatchLoss loss =
+            ae2_batch_loss(*f.net, f.batch, lambda, norm, 9, &parts, diagonal);
+        ASSERT_EQ(parts, 2u);
+        const std::vector<Tensor> params = f.net->parameters();
+        const ropes::nn::BatchGradient g = ropes::nn::batch_gradient(params, loss, parts);
+        EXPECT_NEAR(g.loss, reference_loss(f, lambda, norm, diagonal), 1e-5 * std::fabs(g.loss));
+        const double h = 1e-3;
+        double worst = 0;
+        std::size_t checked = 0;
+        for (std::size_t p = 0; p < params.size(); ++p) {
+          Tensor t = params[p];
+          for (std::int64_t i = 0; i < t.numel(); ++i) {
+            const float saved = t.data()[i];
+            t.mutable_data()[i] = saved + static_cast<float>(h);
+            const double up = reference_loss(f, lambda, norm, diagonal);
+            t.mutable_data()[i] = saved - static_cast<float>(h);
+            const double down = reference_loss(f, lambda, norm, diagonal);
+            t.mutable_data()[i] = saved;
+            const double numeric = (up - down) / (2 * h);
+            const double analytic = g.grads[p].data()[i];
+            const double err = std::fabs(analytic - numeric);
+            worst = std::max(worst, err);
+            EXPECT_LE(err, 2e-3 + 2e-2 * std::fabs(numeric))
+                << to_string(norm) << ", " << normalization << ", " << to_string(diagonal)
+                << ": parameter " << p << " entry " << i << ": analytic " << analytic
+                << ", finite differences " << numeric;
+            ++checked;
+          }
         }
+        std::printf("%s, %s, %s: %zu entries, max |analytic - numeric| %.2e\n", to_string(norm),
+                    normalization.c_str(), to_string(diagonal), checked, worst);
       }
-      std::printf("%s, %s: %zu entries, max |analytic - numeric| %.2e\n", to_string(norm),
-                  normalization.c_str(), checked, worst);
     }
   }
 }
@@ -143,4 +149,10 @@ TEST(SparsityObjective, UnitLengthRowsAndPenalty) {
   EXPECT_FLOAT_EQ(sparsity_penalty(m, 0, SparsityNorm::kL2Squared).item(), 0.25f + 0.0625f + 1.0f);
   EXPECT_FLOAT_EQ(sparsity_penalty(m, 2, SparsityNorm::kL1).item(), 0.75f);
   EXPECT_THROW(sparsity_penalty(m, 3, SparsityNorm::kL1), std::invalid_argument);
+  // the signed mean's magnitude stands for the target entry: (0.5, 0.25, |-0.5| - 1)
+  const Tensor signed_mean(Shape{3}, {0.1f, -0.2f, -0.5f});
+  EXPECT_FLOAT_EQ(sparsity_penalty(m, 2, SparsityNorm::kL2Squared, signed_mean).item(),
+                  0.25f + 0.0625f + 0.25f);
+  EXPECT_THROW(sparsity_penalty(m, 2, SparsityNorm::kL1, Tensor(Shape{2}, {1.0f, 1.0f})),
+               std::invalid_argument);
 }

@@ -52,6 +52,7 @@ struct Ae2Training {
   std::string mode = "per_joint";  ///< "per_joint" (one AE2 a joint) or "joint" (one for all)
   double lambda = 1.0;
   SparsityNorm norm = SparsityNorm::kL2Squared;
+  SparsityDiagonal diagonal = SparsityDiagonal::kMeanAbs;  ///< "sparsity_diagonal", optional
   std::string score_normalization = "none";  ///< "none" or "unit" (|v| = 1 per sample)
   std::string score_samples = "intervened";  ///< "intervened" (joint i's samples) or "all"
   std::int64_t batch_size = 64;              ///< reconstruction samples a step (all regimes)

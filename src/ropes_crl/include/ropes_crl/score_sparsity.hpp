@@ -24,6 +24,19 @@ enum class SparsityNorm {
   kL1,         ///< entrywise L1 || . ||_1, as in the authors' earlier public code ("l1")
 };
 
+/// What stands for the intervened latent's entry of the sparsity row (the other entries are
+/// always E|Delta s_j|).
+enum class SparsityDiagonal {
+  kMeanAbs,  ///< E|Delta s_i|, the paper's form (config value "mean_abs", the default)
+  kAbsMean,  ///< |E Delta s_i|: a latent whose response to v_i changes sign across samples
+             ///< (a latent that folds the joint) is penalised ("abs_mean")
+};
+
+/// Parses "mean_abs" or "abs_mean". Throws std::invalid_argument naming the value otherwise.
+SparsityDiagonal parse_sparsity_diagonal(const std::string& name);
+/// The config spelling of `diagonal`.
+const char* to_string(SparsityDiagonal diagonal);
+
 /// Parses "l2sq" or "l1". Throws std::invalid_argument naming the value otherwise.
 SparsityNorm parse_sparsity_norm(const std::string& name);
 /// The config spelling of `norm`: "l2sq" or "l1".
@@ -35,11 +48,13 @@ const char* to_string(SparsityNorm norm);
 Eigen::VectorXd mean_abs_score_difference(
     const Eigen::Ref<const Eigen::MatrixXd>& latent_score_diffs);
 
-/// The sparsity loss || E[|Delta s|] - e_target ||, squared L2 or L1 per `norm`.
+/// The sparsity loss || E[|Delta s|] - e_target ||, squared L2 or L1 per `norm`; with
+/// SparsityDiagonal::kAbsMean entry `target` of E[|Delta s|] is |E[Delta s_target]|.
 /// `latent_score_diffs`: [n, d], one sample per row. `target`: the intervened latent,
 /// 0 <= target < d. Throws std::invalid_argument for a target out of range and for the
 /// inputs mean_abs_score_difference rejects.
 double score_sparsity_loss(const Eigen::Ref<const Eigen::MatrixXd>& latent_score_diffs, int target,
-                           SparsityNorm norm = SparsityNorm::kL2Squared);
+                           SparsityNorm norm = SparsityNorm::kL2Squared,
+                           SparsityDiagonal diagonal = SparsityDiagonal::kMeanAbs);
 
 }  // namespace ropes::crl

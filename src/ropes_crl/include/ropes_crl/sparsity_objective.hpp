@@ -25,8 +25,11 @@ Tensor latent_score_differences(Ae2& ae2, const Tensor& y, const Tensor& v, bool
 /// v with each sample scaled to unit L2 length (samples of length 0 stay 0). [n, ...].
 Tensor unit_length_rows(const Tensor& v);
 
-/// || mean_abs - e_target ||, squared L2 or L1. mean_abs: [d]; 0 <= target < d.
-Tensor sparsity_penalty(const Tensor& mean_abs, std::int64_t target, SparsityNorm norm);
+/// || mean_abs - e_target ||, squared L2 or L1. mean_abs: [d]; 0 <= target < d. With
+/// `signed_mean` ([d], the batch mean of J_g^T v without the absolute value) entry `target`
+/// of mean_abs is replaced by |signed_mean[target]| (SparsityDiagonal::kAbsMean).
+Tensor sparsity_penalty(const Tensor& mean_abs, std::int64_t target, SparsityNorm norm,
+                        const Tensor& signed_mean = Tensor());
 
 /// One AE2 training batch: reconstruction samples and, per sparsity term, samples with their
 /// score differences.
@@ -43,7 +46,10 @@ struct Ae2Batch {
 /// lambda == 0 no sparsity statistic is computed and the loss is affine. `*micro_batches`
 /// receives the number of parts (StepOptions::micro_batches). The returned loss refers to
 /// `ae2` and `batch`: both must outlive it.
+/// With SparsityDiagonal::kAbsMean each term has a second statistic after |J_g^T v_k|: the
+/// signed J_g^T v_k (statistics 1 + 2k and 2 + 2k).
 nn::BatchLoss ae2_batch_loss(Ae2& ae2, const Ae2Batch& batch, double lambda, SparsityNorm norm,
-                             std::int64_t micro_batch, std::size_t* micro_batches);
+                             std::int64_t micro_batch, std::size_t* micro_batches,
+                             SparsityDiagonal diagonal = SparsityDiagonal::kMeanAbs);
 
 }  // namespace ropes::crl
