@@ -9,8 +9,8 @@ OPENBLAS_CORETYPE unset, the same thread count.
 
 SAME padding where it is symmetric (stride 1, odd kernel) can be PyTorch's own (native) or
 an explicit F.pad before an unpadded convolution; PyTorch 1.13 picks different kernels for
-the two (here the native one trains faster, the explicit one encodes a single image about
-2.5 times faster), so each case runs both ways and reports its better figure, and
+the two (here the explicit one encodes a single image about 2.4 times faster; for training
+steps they are within noise), so each case runs both ways and reports its better figure, and
 "NAME:native_padding 1|0" says which it was. Asymmetric SAME (stride 2) is always an
 explicit pad of the smaller half before, as ropes_nn pads.
 """
