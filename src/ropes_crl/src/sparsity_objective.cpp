@@ -144,26 +144,27 @@ nn::BatchLoss ae2_batch_loss(Ae2& ae2, const Ae2Batch& batch, double lambda, Spa
       recon = nn::mul_scalar(nn::mean(nn::square(nn::sub(ae2(y_r), y_r)), {1, 2, 3}), scale_r);
     stats.push_back(
         join({recon, rows > sizes[0] ? Tensor::zeros(Shape{rows - sizes[0]}) : Tensor()}));
-    std::int64_t before = sizes[0];
-    for (std::size_t k = 0; k < terms; ++k) {
-      const std::int64_t after = rows - before - sizes[k + 1];
-      stats.push_back(join({before > 0 ? Tensor::zeros(Shape{before, d}) : Tensor(), jtv[k],
-                            after > 0 ? Tensor::zeros(Shape{after, d}) : Tensor()}));
-      if (with_signed)
-        stats.push_back(
-            join({before > 0 ? Tensor::zeros(Shape{before, d}) : Tensor(), signed_jtv[k],
-                  after > 0 ? Tensor::zeros(Shape{after, d}) : Tensor()}));
-      before += sizes[k + 1];
-    }
+    // term k's rows of `per_term`, zeros elsewhere: |J_g^T v_k| first, then the signed ones
+    const auto place = [&](const std::vector<Tensor>& per_term) {
+      std::int64_t before = sizes[0];
+      for (std::size_t k = 0; k < terms; ++k) {
+        const std::int64_t after = rows - before - sizes[k + 1];
+        stats.push_back(join({before > 0 ? Tensor::zeros(Shape{before, d}) : Tensor(), per_term[k],
+                              after > 0 ? Tensor::zeros(Shape{after, d}) : Tensor()}));
+        before += sizes[k + 1];
+      }
+    };
+    place(jtv);
+    if (with_signed)
+      place(signed_jtv);
     return stats;
   };
   const std::vector<std::int64_t> targets = batch.targets;
   loss.outer = [terms, lambda, norm, targets, with_signed](const std::vector<Tensor>& means) {
     Tensor l = means[0];
-    const std::size_t per = with_signed ? 2 : 1;
     for (std::size_t k = 0; k < terms; ++k)
-      l = nn::add(l, nn::mul_scalar(sparsity_penalty(means[1 + per * k], targets[k], norm,
-                                                     with_signed ? means[2 + per * k] : Tensor()),
+      l = nn::add(l, nn::mul_scalar(sparsity_penalty(means[1 + k], targets[k], norm,
+                                                     with_signed ? means[1 + terms + k] : Tensor()),
                                     static_cast<float>(lambda)));
     return l;
   };

@@ -409,9 +409,9 @@ void train_ae2(const ExperimentConfig& config, const TrainingData& data, const S
           {"grad_norm", r.grad_norm},
           {"samples_per_s", static_cast<double>(window_samples) / seconds_since(window)}};
       nlohmann::json rows = nlohmann::json::object();
-      const std::size_t per = t.diagonal == SparsityDiagonal::kAbsMean ? 2 : 1;
-      for (std::size_t i = 0; 1 + per * i < r.means.size(); ++i)
-        rows[config.joints[model.terms[i]]] = r.means[1 + per * i];
+      if (model.lambda > 0)
+        for (std::size_t i = 0; i < model.terms.size(); ++i)
+          rows[config.joints[model.terms[i]]] = r.means[1 + i];
       rec["sparsity_rows"] = rows;
       metrics.append(rec);
       window = Clock::now();

@@ -46,8 +46,8 @@ struct Ae2Batch {
 /// lambda == 0 no sparsity statistic is computed and the loss is affine. `*micro_batches`
 /// receives the number of parts (StepOptions::micro_batches). The returned loss refers to
 /// `ae2` and `batch`: both must outlive it.
-/// With SparsityDiagonal::kAbsMean each term has a second statistic after |J_g^T v_k|: the
-/// signed J_g^T v_k (statistics 1 + 2k and 2 + 2k).
+/// With SparsityDiagonal::kAbsMean the signed J_g^T v_k follow as statistics 1 + K + k
+/// (K terms), so statistic 1 + k is row k of the sparsity matrix in both forms.
 nn::BatchLoss ae2_batch_loss(Ae2& ae2, const Ae2Batch& batch, double lambda, SparsityNorm norm,
                              std::int64_t micro_batch, std::size_t* micro_batches,
                              SparsityDiagonal diagonal = SparsityDiagonal::kMeanAbs);
