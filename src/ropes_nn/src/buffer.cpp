@@ -4,6 +4,7 @@
 #include <map>
 #include <mutex>
 #include <utility>
+#include <vector>
 
 namespace ropes::nn::pool {
 
@@ -11,10 +12,12 @@ namespace {
 
 constexpr std::size_t kAlignment = 64;
 
-// blocks are kept per exact byte size: a training step asks for the same sizes each time
+// blocks are kept per exact byte size: a training step asks for the same sizes each time.
+// One list per size that only grows, so that recycling a block allocates nothing once the
+// list has seen as many blocks of its size (what makes a warm inference call malloc-free).
 struct Pool {
   std::mutex mutex;
-  std::multimap<std::size_t, void*> free_blocks;
+  std::map<std::size_t, std::vector<void*>> free_blocks;
   std::size_t cached = 0;
   std::size_t max_cached = [] {
     if (const char* env = std::getenv("ROPES_POOL_MAX_BYTES")) {
@@ -24,8 +27,9 @@ struct Pool {
   }();
 
   ~Pool() {
-    for (auto& [bytes, p] : free_blocks)
-      std::free(p);
+    for (auto& [bytes, blocks] : free_blocks)
+      for (void* p : blocks)
+        std::free(p);
   }
 };
 
@@ -46,9 +50,9 @@ void* allocate(std::size_t bytes) {
   {
     std::lock_guard<std::mutex> lock(pool.mutex);
     const auto it = pool.free_blocks.find(size);
-    if (it != pool.free_blocks.end()) {
-      void* p = it->second;
-      pool.free_blocks.erase(it);
+    if (it != pool.free_blocks.end() && !it->second.empty()) {
+      void* p = it->second.back();
+      it->second.pop_back();
       pool.cached -= size;
       return p;
     }
@@ -72,9 +76,13 @@ void deallocate(void* p, std::size_t bytes) noexcept {
   {
     std::lock_guard<std::mutex> lock(pool.mutex);
     if (pool.cached + size <= pool.max_cached) {
-      pool.free_blocks.emplace(size, p);
-      pool.cached += size;
-      return;
+      try {
+        pool.free_blocks[size].push_back(p);
+        pool.cached += size;
+        return;
+      } catch (const std::bad_alloc&) {
+        // no room for the list entry: give the block back to the system instead
+      }
     }
   }
   std::free(p);
@@ -88,14 +96,15 @@ std::size_t cached_bytes() {
 
 void release_cached() {
   Pool& pool = instance();
-  std::multimap<std::size_t, void*> blocks;
+  std::map<std::size_t, std::vector<void*>> blocks;
   {
     std::lock_guard<std::mutex> lock(pool.mutex);
     blocks.swap(pool.free_blocks);
     pool.cached = 0;
   }
-  for (auto& [bytes, p] : blocks)
-    std::free(p);
+  for (auto& [bytes, list] : blocks)
+    for (void* p : list)
+      std::free(p);
 }
 
 }  // namespace ropes::nn::pool

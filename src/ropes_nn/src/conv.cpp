@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "gemm.hpp"
 #include "ropes_nn/ops.hpp"
 #include "ropes_nn/parallel.hpp"
 #include "tensor_impl.hpp"
@@ -113,13 +114,11 @@ void count_flops(const ConvGeometry& g) {
 Buffer conv_forward(const float* x, const float* w, const ConvGeometry& g) {
   count_flops(g);
   Buffer y(static_cast<std::size_t>(g.y_shape().numel()));
-  const Eigen::Map<const RowMajor> wm(w, g.o, g.patch());
   parallel_for(g.n, [&](int, std::int64_t begin, std::int64_t end) {
     Buffer col(static_cast<std::size_t>(g.patch() * g.pixels()));
     for (std::int64_t i = begin; i < end; ++i) {
       im2col(x + i * g.c * g.h * g.w, g, col.data());
-      Eigen::Map<RowMajor>(y.data() + i * g.o * g.pixels(), g.o, g.pixels()).noalias() =
-          wm * Eigen::Map<const RowMajor>(col.data(), g.patch(), g.pixels());
+      gemm(w, col.data(), y.data() + i * g.o * g.pixels(), g.o, g.patch(), g.pixels());
     }
   });
   return y;
@@ -221,17 +220,25 @@ class ConvWeightGradNode final : public Node {
   ConvGeometry g_;
 };
 
+// the node and the input list only when a graph is recorded (see needs_graph)
+template <typename NodeType>
+Tensor conv_result(const Shape& shape, Buffer values, const ConvGeometry& g, const Tensor& a,
+                   const Tensor& b) {
+  if (!needs_graph({a, b}))
+    return Tensor(shape, std::move(values));
+  return make_op_result(shape, std::move(values), std::make_shared<NodeType>(g), {a, b});
+}
+
 Tensor conv_op(const Tensor& x, const Tensor& w, const ConvGeometry& g) {
-  return make_op_result(g.y_shape(), conv_forward(x.data(), w.data(), g),
-                        std::make_shared<ConvNode>(g), {x, w});
+  return conv_result<ConvNode>(g.y_shape(), conv_forward(x.data(), w.data(), g), g, x, w);
 }
 Tensor conv_input_grad_op(const Tensor& gy, const Tensor& w, const ConvGeometry& g) {
-  return make_op_result(g.x_shape(), conv_input_grad(gy.data(), w.data(), g),
-                        std::make_shared<ConvInputGradNode>(g), {gy, w});
+  return conv_result<ConvInputGradNode>(g.x_shape(), conv_input_grad(gy.data(), w.data(), g), g, gy,
+                                        w);
 }
 Tensor conv_weight_grad_op(const Tensor& x, const Tensor& gy, const ConvGeometry& g) {
-  return make_op_result(g.w_shape(), conv_weight_grad(x.data(), gy.data(), g),
-                        std::make_shared<ConvWeightGradNode>(g), {x, gy});
+  return conv_result<ConvWeightGradNode>(g.w_shape(), conv_weight_grad(x.data(), gy.data(), g), g,
+                                         x, gy);
 }
 
 [[noreturn]] void fail(const char* op, const std::string& what) {

@@ -45,7 +45,7 @@ struct Layout {
 
 class GroupNormNode final : public Node {
  public:
-  GroupNormNode(const Layout& l, float eps, std::vector<float> mean, std::vector<float> rstd)
+  GroupNormNode(const Layout& l, float eps, Buffer mean, Buffer rstd)
       : l_(l), eps_(eps), mean_(std::move(mean)), rstd_(std::move(rstd)) {}
   const char* name() const override { return "group_norm"; }
 
@@ -129,7 +129,7 @@ class GroupNormNode final : public Node {
 
   Layout l_;
   float eps_;
-  std::vector<float> mean_, rstd_;  // per (sample, group); held as float, computed in double
+  Buffer mean_, rstd_;  // per (sample, group); held as float, computed in double
 };
 
 }  // namespace
@@ -153,8 +153,8 @@ Tensor group_norm(const Tensor& x, int groups, const Tensor& gamma, const Tensor
     fail("x " + x.shape().str() + " is empty");
 
   // statistics per (sample, group) in double, then the normalised, affine output
-  std::vector<float> mean(static_cast<std::size_t>(n * groups));
-  std::vector<float> rstd(mean.size());
+  Buffer mean(static_cast<std::size_t>(n * groups));
+  Buffer rstd(mean.size());
   Buffer y(static_cast<std::size_t>(x.numel()));
   const float* xp = x.data();
   const float* gp = gamma.data();
@@ -184,6 +184,8 @@ Tensor group_norm(const Tensor& x, int groups, const Tensor& gamma, const Tensor
       }
     }
   });
+  if (!needs_graph({x, gamma, beta}))
+    return Tensor(x.shape(), std::move(y));
   return make_op_result(x.shape(), std::move(y),
                         std::make_shared<GroupNormNode>(l, eps, std::move(mean), std::move(rstd)),
                         {x, gamma, beta});

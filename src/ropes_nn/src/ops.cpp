@@ -31,23 +31,24 @@ class FnNode final : public Node {
   BackwardFn fn_;
 };
 
-bool needs_graph(const std::vector<Tensor>& inputs) {
-  if (!grad_mode_enabled())
-    return false;
-  for (const Tensor& t : inputs) {
-    if (t.requires_grad())
-      return true;
-  }
-  return false;
+// the result of an operation, with its backward recorded when needed; without a graph
+// neither the node nor the list of inputs is built (no allocation beyond the result's)
+template <typename Fn>
+Tensor record(const Shape& shape, Buffer values, std::initializer_list<Tensor> inputs,
+              const char* name, Fn&& fn) {
+  if (!graph_needed(inputs))
+    return Tensor(shape, std::move(values));
+  return make_op_result(shape, std::move(values),
+                        std::make_shared<FnNode>(name, BackwardFn(std::forward<Fn>(fn))),
+                        std::vector<Tensor>(inputs));
 }
-
-// the result of an operation, with its backward recorded when needed
-Tensor record(const Shape& shape, Buffer values, std::vector<Tensor> inputs, const char* name,
-              BackwardFn fn) {
-  std::shared_ptr<Node> node;
-  if (needs_graph(inputs))
-    node = std::make_shared<FnNode>(name, std::move(fn));
-  return make_op_result(shape, std::move(values), std::move(node), std::move(inputs));
+template <typename Fn>
+Tensor record(const Shape& shape, Buffer values, const std::vector<Tensor>& inputs,
+              const char* name, Fn&& fn) {
+  if (!graph_needed(inputs))
+    return Tensor(shape, std::move(values));
+  return make_op_result(shape, std::move(values),
+                        std::make_shared<FnNode>(name, BackwardFn(std::forward<Fn>(fn))), inputs);
 }
 
 void require_defined(const Tensor& t, const char* op, const char* arg) {
@@ -139,8 +140,8 @@ Buffer broadcast_apply(const Tensor& a, const Tensor& b, const Shape& out, F f) 
   return r;
 }
 
-template <typename F>
-Tensor unary(const Tensor& x, const char* name, F f, BackwardFn backward) {
+template <typename F, typename B>
+Tensor unary(const Tensor& x, const char* name, F f, B&& backward) {
   require_defined(x, name, "x");
   Buffer r(static_cast<std::size_t>(x.numel()));
   float* pr = r.data();
@@ -149,7 +150,7 @@ Tensor unary(const Tensor& x, const char* name, F f, BackwardFn backward) {
     for (std::int64_t i = begin; i < end; ++i)
       pr[i] = f(p[i]);
   });
-  return record(x.shape(), std::move(r), {x}, name, std::move(backward));
+  return record(x.shape(), std::move(r), {x}, name, std::forward<B>(backward));
 }
 
 // a constant tensor (no graph) computed elementwise from x's values
@@ -217,7 +218,7 @@ Buffer reduce_sum4(const Tensor& x, const std::array<bool, 4>& reduce, Dims4* ou
 
 Shape broadcast_shape(const Shape& a, const Shape& b, const char* op) {
   const int rank = std::max(a.rank(), b.rank());
-  std::vector<std::int64_t> dims(static_cast<std::size_t>(rank));
+  std::array<std::int64_t, Shape::kMaxRank> dims{};
   for (int i = 0; i < rank; ++i) {
     const std::int64_t da = i < rank - a.rank() ? 1 : a[i - (rank - a.rank())];
     const std::int64_t db = i < rank - b.rank() ? 1 : b[i - (rank - b.rank())];
@@ -228,7 +229,7 @@ Shape broadcast_shape(const Shape& a, const Shape& b, const char* op) {
     }
     dims[static_cast<std::size_t>(i)] = std::max(da, db);
   }
-  return Shape(dims);
+  return Shape(dims.data(), rank);
 }
 
 Tensor broadcast_to(const Tensor& x, const Shape& shape) {

@@ -58,8 +58,7 @@ int parallel_chunks(std::int64_t n) {
   return static_cast<int>(std::max<std::int64_t>(1, std::min<std::int64_t>(num_threads(), n)));
 }
 
-void parallel_for(std::int64_t n, int chunks,
-                  const std::function<void(int, std::int64_t, std::int64_t)>& body) {
+void parallel_for(std::int64_t n, int chunks, ChunkBody body) {
   if (n <= 0)
     return;
   ROPES_DEMAND(chunks >= 1 && chunks <= n, "parallel_for: " + std::to_string(chunks) +
@@ -85,8 +84,7 @@ void parallel_for(std::int64_t n, int chunks,
     std::rethrow_exception(failure);
 }
 
-void parallel_for(std::int64_t n,
-                  const std::function<void(int, std::int64_t, std::int64_t)>& body) {
+void parallel_for(std::int64_t n, ChunkBody body) {
   if (n <= 0)
     return;
   parallel_for(n, parallel_chunks(n), body);

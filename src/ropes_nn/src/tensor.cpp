@@ -12,21 +12,32 @@ namespace ropes::nn {
 
 // --- Shape ----------------------------------------------------------------------------------
 
-Shape::Shape(std::initializer_list<std::int64_t> dims) : Shape(std::vector<std::int64_t>(dims)) {}
+Shape::Shape(std::initializer_list<std::int64_t> dims) {
+  assign(dims.begin(), dims.size());
+}
 
 Shape::Shape(const std::vector<std::int64_t>& dims) {
-  if (dims.size() > static_cast<std::size_t>(kMaxRank)) {
-    throw std::invalid_argument("Shape: rank " + std::to_string(dims.size()) +
+  assign(dims.data(), dims.size());
+}
+
+Shape::Shape(const std::int64_t* dims, int rank) {
+  if (rank < 0)
+    throw std::invalid_argument("Shape: rank " + std::to_string(rank) + "; expected 0 to 4");
+  assign(dims, static_cast<std::size_t>(rank));
+}
+
+void Shape::assign(const std::int64_t* dims, std::size_t rank) {
+  if (rank > static_cast<std::size_t>(kMaxRank)) {
+    throw std::invalid_argument("Shape: rank " + std::to_string(rank) +
                                 " is not supported; expected at most 4");
   }
-  rank_ = static_cast<int>(dims.size());
+  rank_ = static_cast<int>(rank);
   for (int i = 0; i < rank_; ++i) {
-    if (dims[static_cast<std::size_t>(i)] < 0) {
+    if (dims[i] < 0) {
       throw std::invalid_argument("Shape: dimension " + std::to_string(i) + " is " +
-                                  std::to_string(dims[static_cast<std::size_t>(i)]) +
-                                  "; expected >= 0");
+                                  std::to_string(dims[i]) + "; expected >= 0");
     }
-    dims_[static_cast<std::size_t>(i)] = dims[static_cast<std::size_t>(i)];
+    dims_[static_cast<std::size_t>(i)] = dims[i];
   }
 }
 
@@ -62,6 +73,12 @@ bool Shape::operator==(const Shape& other) const {
 namespace {
 thread_local bool g_grad_mode = true;
 
+// tensor handles and their storage's control blocks come from the buffer pool too, so that
+// a warm forward pass without grad mode allocates nothing from the system
+std::shared_ptr<TensorImpl> new_impl() {
+  return std::allocate_shared<TensorImpl>(PoolAllocator<TensorImpl>());
+}
+
 const TensorImpl& checked(const std::shared_ptr<TensorImpl>& impl, const char* what) {
   if (!impl)
     throw std::invalid_argument(std::string("Tensor::") + what + ": undefined tensor");
@@ -90,9 +107,9 @@ Tensor::Tensor(const Shape& shape, Buffer values, bool requires_grad) {
     throw std::invalid_argument("Tensor: " + std::to_string(values.size()) + " values for shape " +
                                 shape.str() + "; expected " + std::to_string(shape.numel()));
   }
-  impl_ = std::make_shared<TensorImpl>();
+  impl_ = new_impl();
   impl_->shape = shape;
-  impl_->storage = std::make_shared<Buffer>(std::move(values));
+  impl_->storage = std::allocate_shared<Buffer>(PoolAllocator<Buffer>(), std::move(values));
   impl_->requires_grad = requires_grad;
 }
 
@@ -205,7 +222,7 @@ Tensor Tensor::reshape(const Shape& shape) const {
 
 Tensor share_storage(const Tensor& source, const Shape& shape, std::shared_ptr<Node> node) {
   Tensor t;
-  t.impl_ = std::make_shared<TensorImpl>();
+  t.impl_ = new_impl();
   t.impl_->shape = shape;
   t.impl_->storage = source.impl_->storage;
   if (grad_mode_enabled() && source.requires_grad()) {

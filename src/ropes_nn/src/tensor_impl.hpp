@@ -1,5 +1,6 @@
 #pragma once
 // Private: what a Tensor handle points to.
+#include <initializer_list>
 #include <memory>
 #include <vector>
 
@@ -18,6 +19,23 @@ struct TensorImpl {
 }  // namespace ropes::nn
 
 namespace ropes::nn {
+// Whether an operation on `inputs` (a list or a vector of tensors) records a graph: grad
+// mode is on and an input requires grad. Operations build their node (and the list of
+// inputs) only then, so that a forward pass without grad mode allocates nothing beyond its
+// results.
+template <typename Inputs>
+bool graph_needed(const Inputs& inputs) {
+  if (!grad_mode_enabled())
+    return false;
+  for (const Tensor& t : inputs) {
+    if (t.requires_grad())
+      return true;
+  }
+  return false;
+}
+inline bool needs_graph(std::initializer_list<Tensor> inputs) {
+  return graph_needed(inputs);
+}
 // A tensor that views `source`'s storage with another shape; records `node` (whose
 // backward must undo the view) when grad mode is on and `source` requires grad.
 Tensor share_storage(const Tensor& source, const Shape& shape, std::shared_ptr<Node> node);

@@ -7,6 +7,7 @@
 #include <atomic>
 #include <cmath>
 #include <stdexcept>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -64,6 +65,47 @@ TEST(Parallel, OtherThreadCountsAgreeToFloatRounding) {
     EXPECT_NEAR(two[i], one[i], 1e-5 * scale) << i;
     EXPECT_NEAR(three[i], one[i], 1e-5 * scale) << i;
   }
+}
+
+// conv2d's forward runs its product on a row split that keeps each output's arithmetic (see
+// src/gemm.hpp): one image gives the same bits alone at any thread count and inside a batch,
+// which is what makes a streamed frame's estimate equal the batch evaluation's.
+TEST(Parallel, ConvolutionForwardIsBitIdenticalAcrossThreadsAndBatches) {
+  struct Case {
+    std::int64_t c, o, size, kernel;
+    int stride;
+  };
+  // the small preset's stem and stages, output channels that do and do not fill whole
+  // 16-row quanta, and a product big enough for three threads
+  const Case cases[] = {{1, 16, 128, 4, 4}, {16, 32, 32, 3, 1}, {32, 64, 16, 3, 2},
+                        {8, 80, 20, 3, 1},  {24, 47, 18, 3, 1}, {64, 96, 16, 3, 1}};
+  const int saved = num_threads();
+  for (const Case& k : cases) {
+    PhiloxStream rng(static_cast<std::uint64_t>(k.o), 0);
+    std::vector<float> xs(static_cast<std::size_t>(3 * k.c * k.size * k.size));
+    std::vector<float> ws(static_cast<std::size_t>(k.o * k.c * k.kernel * k.kernel));
+    for (float& v : xs)
+      v = static_cast<float>(rng.normal());
+    for (float& v : ws)
+      v = static_cast<float>(rng.normal());
+    const Tensor batch(Shape{3, k.c, k.size, k.size}, xs);
+    const Tensor w(Shape{k.o, k.c, k.kernel, k.kernel}, ws);
+    const Tensor one = slice(batch, 0, 1, 2);
+    set_num_threads(1);
+    const std::vector<float> alone1 = conv2d(one, w, k.stride).to_vector();
+    set_num_threads(2);
+    const std::vector<float> alone2 = conv2d(one, w, k.stride).to_vector();
+    const Tensor batch2 = conv2d(batch, w, k.stride);
+    set_num_threads(3);
+    const std::vector<float> alone3 = conv2d(one, w, k.stride).to_vector();
+    const std::vector<float> in_batch = slice(batch2, 0, 1, 2).to_vector();
+    const std::string what = "conv " + std::to_string(k.c) + " -> " + std::to_string(k.o) + " on " +
+                             std::to_string(k.size) + "^2";
+    EXPECT_EQ(alone2, alone1) << what;
+    EXPECT_EQ(alone3, alone1) << what;
+    EXPECT_EQ(in_batch, alone1) << what;
+  }
+  set_num_threads(saved);
 }
 
 TEST(Parallel, ParallelForCoversTheRangeInFixedChunks) {

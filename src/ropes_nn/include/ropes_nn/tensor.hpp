@@ -35,6 +35,8 @@ class Shape {
   /// Throws std::invalid_argument for rank > 4 or a negative dimension.
   Shape(std::initializer_list<std::int64_t> dims);
   explicit Shape(const std::vector<std::int64_t>& dims);
+  /// The first `rank` entries of `dims` (no allocation, unlike the vector form).
+  Shape(const std::int64_t* dims, int rank);
 
   int rank() const { return rank_; }
   /// The size of dimension `axis`, 0 <= axis < rank() (ROPES_DEMAND: an axis outside the
@@ -55,6 +57,7 @@ class Shape {
   bool operator!=(const Shape& other) const { return !(*this == other); }
 
  private:
+  void assign(const std::int64_t* dims, std::size_t rank);
   int rank_ = 0;
   std::array<std::int64_t, kMaxRank> dims_{};
 };
