@@ -25,6 +25,7 @@
 #include <ropes_crl/networks.hpp>
 #include <ropes_crl/sparsity_objective.hpp>
 #include <ropes_nn/adam.hpp>
+#include <ropes_nn/allocation_counter.hpp>
 #include <ropes_nn/benchmark.hpp>
 #include <ropes_nn/ops.hpp>
 #include <ropes_nn/parallel.hpp>
@@ -32,8 +33,6 @@
 #include <ropes_nn/train_step.hpp>
 
 #include <algorithm>
-#include <atomic>
-#include <cerrno>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -45,58 +44,6 @@
 #include <stdexcept>
 #include <string>
 #include <vector>
-
-// Every heap allocation of the process goes through malloc (operator new, Eigen and the
-// buffer pool included); these definitions interpose glibc's and count the calls while
-// `g_counting` is set, to measure what one Estimator frame allocates.
-extern "C" {
-void* __libc_malloc(std::size_t);
-void* __libc_calloc(std::size_t, std::size_t);
-void* __libc_realloc(void*, std::size_t);
-void* __libc_memalign(std::size_t, std::size_t);
-void __libc_free(void*);
-}
-namespace {
-std::atomic<bool> g_counting{false};
-std::atomic<std::uint64_t> g_allocations{0};
-void count_allocation() {
-  if (g_counting.load(std::memory_order_relaxed))
-    g_allocations.fetch_add(1, std::memory_order_relaxed);
-}
-}  // namespace
-extern "C" {
-void* malloc(std::size_t n) noexcept {
-  count_allocation();
-  return __libc_malloc(n);
-}
-void* calloc(std::size_t n, std::size_t size) noexcept {
-  count_allocation();
-  return __libc_calloc(n, size);
-}
-void* realloc(void* p, std::size_t n) noexcept {
-  count_allocation();
-  return __libc_realloc(p, n);
-}
-void* aligned_alloc(std::size_t alignment, std::size_t n) noexcept {
-  count_allocation();
-  return __libc_memalign(alignment, n);
-}
-void* memalign(std::size_t alignment, std::size_t n) noexcept {
-  count_allocation();
-  return __libc_memalign(alignment, n);
-}
-int posix_memalign(void** out, std::size_t alignment, std::size_t n) noexcept {
-  count_allocation();
-  void* p = __libc_memalign(alignment, n);
-  if (p == nullptr)
-    return ENOMEM;
-  *out = p;
-  return 0;
-}
-void free(void* p) noexcept {
-  __libc_free(p);
-}
-}
 
 namespace nn = ropes::nn;
 namespace crl = ropes::crl;
@@ -336,15 +283,14 @@ int estimator_frames(const std::string& run, int threads) {
       estimator.estimate_frame(frame.data(), latents.data());
     const int frames = 500;
     std::vector<double> ms;
-    g_allocations = 0;
-    g_counting = true;
+    nn::allocation_counter::start();
     for (int i = 0; i < frames; ++i) {
       const auto t0 = std::chrono::steady_clock::now();
       estimator.estimate_frame(frame.data(), latents.data());
       ms.push_back(
           std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
     }
-    g_counting = false;
+    const std::uint64_t allocations = nn::allocation_counter::stop();
     std::sort(ms.begin(), ms.end());
     std::printf(
         "Estimator::estimate_frame of %s (%s, %lld camera(s), %d thread(s)), %d frames "
@@ -352,7 +298,7 @@ int estimator_frames(const std::string& run, int threads) {
         "allocations a frame\n",
         run.c_str(), c.name.c_str(), static_cast<long long>(c.cameras), nn::num_threads(), frames,
         ms[ms.size() / 2], ms[ms.size() * 99 / 100], ms.back(),
-        static_cast<double>(g_allocations.load()) / frames);
+        static_cast<double>(allocations) / frames);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "ropes_crl_bench: %s\n", e.what());
     return 1;

@@ -4,6 +4,7 @@
 #include <ropes_nn/npy.hpp>
 #include <ropes_nn/ops.hpp>
 
+#include <algorithm>
 #include <stdexcept>
 
 #include "json_fields.hpp"
@@ -197,17 +198,32 @@ Tensor Estimator::angles_from_latents(const Tensor& latents) const {
   return Tensor(Shape{n, j}, out);
 }
 
+// The per-frame path of streaming: the same networks as latents(), written so that a warm
+// call allocates nothing from the system (the tensors' storage comes from ropes_nn's pool,
+// no vector of columns is built, the latents are read in place).
 void Estimator::estimate_frame(const std::uint8_t* pixels, float* latents_out, float* angles_out) {
   const ExperimentConfig& c = state_->config;
   const std::int64_t count = c.cameras * c.image_size * c.image_size;
+  nn::GradModeGuard no_grad(false);
   nn::Buffer x(static_cast<std::size_t>(count));
   for (std::int64_t i = 0; i < count; ++i)
     x[static_cast<std::size_t>(i)] = static_cast<float>(pixels[i]) / 255.0f;
-  const Tensor z = latents(Tensor(Shape{1, c.cameras, c.image_size, c.image_size}, std::move(x)));
-  std::copy_n(z.data(), z.numel(), latents_out);
+  const Tensor y =
+      state_->ae1->encode(Tensor(Shape{c.cameras, 1, c.image_size, c.image_size}, std::move(x)));
+  const std::int64_t side = y.shape()[2];
+  const Tensor code = nn::reshape(y, Shape{1, c.code_channels(), side, side});
+  const std::size_t joints = c.joints.size();
+  if (state_->ae2.size() == 1) {
+    const Tensor z = state_->ae2[0]->encode(code);
+    std::copy_n(z.data(), joints, latents_out);
+  } else {
+    for (std::size_t k = 0; k < joints; ++k)
+      latents_out[k] = state_->ae2[k]->encode(code).data()[k];
+  }
   if (angles_out != nullptr && state_->calibrated) {
-    const Tensor a = angles_from_latents(z);
-    std::copy_n(a.data(), a.numel(), angles_out);
+    const Calibration& cal = state_->calibration;
+    for (std::size_t k = 0; k < joints; ++k)
+      angles_out[k] = static_cast<float>(cal.scale[k] * latents_out[k] + cal.offset[k]);
   }
 }
 

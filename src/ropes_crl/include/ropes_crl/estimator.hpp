@@ -72,7 +72,10 @@ class Estimator {
 
   /// One frame: `pixels` holds cameras * S * S bytes (camera-major, row-major), the layout of
   /// a dataset row and of a streamed frame. Writes J latents and, when calibrated and
-  /// `angles` is not null, J angles.
+  /// `angles` is not null, J angles. After a few warm-up calls it allocates nothing from the
+  /// system (ropes_nn's pool and per-thread workspaces are reused). The latents are those of
+  /// latents() on a batch of this one frame, bit for bit; inside a larger batch they agree to
+  /// float rounding (the MLP's products become a GEMM).
   void estimate_frame(const std::uint8_t* pixels, float* latents, float* angles = nullptr);
 
  private:

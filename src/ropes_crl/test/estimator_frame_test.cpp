@@ -1,0 +1,191 @@
+// Estimator::estimate_frame, the call streaming makes per frame: after warm-up it allocates
+// nothing (at one and two threads, one and two cameras), and it gives the latents the batch
+// evaluation gives — bit for bit for a batch of one, to float rounding inside a larger batch
+// (there the MLP's products are a GEMM instead of a GEMV). The run is the `small` preset's
+// architecture, trained for a few steps on a synthetic two-joint dataset (what is tested is
+// the inference path, not the learning). Its own executable: allocation_counter.hpp
+// interposes malloc for the whole process.
+#include <ropes_crl/estimator.hpp>
+#include <ropes_crl/trainer.hpp>
+#include <ropes_nn/allocation_counter.hpp>
+#include <ropes_nn/dataset.hpp>
+#include <ropes_nn/parallel.hpp>
+#include <ropes_nn/philox.hpp>
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace ropes::crl {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr std::int64_t kSize = 128;
+
+// joint j's bar, centred in its half of the image, at angle q; camera 1 sees the transpose
+void draw(const double q[2], std::int64_t camera, std::uint8_t* image) {
+  for (std::int64_t y = 0; y < kSize; ++y)
+    for (std::int64_t x = 0; x < kSize; ++x) {
+      const std::int64_t u_px = camera == 0 ? x : y, v_px = camera == 0 ? y : x;
+      const int j = u_px < kSize / 2 ? 0 : 1;
+      const double u = static_cast<double>(u_px % (kSize / 2)) - 31.5;
+      const double v = static_cast<double>(v_px) - 63.5;
+      const double along = u * std::cos(q[j]) + v * std::sin(q[j]);
+      const double across = -u * std::sin(q[j]) + v * std::cos(q[j]);
+      image[y * kSize + x] = std::fabs(across) < 3.0 && std::fabs(along) < 28.0 ? 230 : 20;
+    }
+}
+
+const char* const kJoints[2] = {"a", "b"};
+
+// 40 anchors x (observational, do(a)=1, do(a)=2, do(b)=1, do(b)=2), the columns and the
+// metadata ropes-generate writes
+void write_dataset(const fs::path& dir, std::int64_t cameras) {
+  const std::int64_t anchors = 40, regimes = 5, n = anchors * regimes;
+  const std::int64_t pixels = cameras * kSize * kSize;
+  nn::NpyArray images{nn::DType::kU8,
+                      {n, cameras, kSize, kSize},
+                      std::vector<std::uint8_t>(static_cast<std::size_t>(n * pixels))};
+  nn::NpyArray angles{nn::DType::kF32, {n, 2}, std::vector<std::uint8_t>(n * 8)};
+  nn::NpyArray regime{nn::DType::kI32, {n}, std::vector<std::uint8_t>(n * 4)};
+  nn::NpyArray anchor{nn::DType::kI64, {n}, std::vector<std::uint8_t>(n * 8)};
+  for (std::int64_t i = 0; i < n; ++i) {
+    const std::int32_t r = static_cast<std::int32_t>(i % regimes);
+    const std::int64_t a = i / regimes;
+    nn::PhiloxStream rng(9, static_cast<std::uint64_t>(i));
+    double q[2];
+    for (int j = 0; j < 2; ++j) {
+      const bool intervened = r != 0 && (r - 1) / 2 == j;
+      const double mean = !intervened ? 0.0 : (r % 2 == 1 ? -0.6 : 0.6);
+      const double sd = intervened ? 0.4 : 0.8;
+      q[j] = mean + sd * rng.truncated_normal((-1.4 - mean) / sd, (1.4 - mean) / sd);
+      const float qf = static_cast<float>(q[j]);
+      std::memcpy(&angles.data[static_cast<std::size_t>(i * 8 + j * 4)], &qf, 4);
+    }
+    for (std::int64_t c = 0; c < cameras; ++c)
+      draw(q, c, &images.data[static_cast<std::size_t>(i * pixels + c * kSize * kSize)]);
+    std::memcpy(&regime.data[static_cast<std::size_t>(i * 4)], &r, 4);
+    std::memcpy(&anchor.data[static_cast<std::size_t>(i * 8)], &a, 8);
+  }
+  const std::vector<nn::ColumnSpec> columns = {{"images", nn::DType::kU8, {cameras, kSize, kSize}},
+                                               {"angles", nn::DType::kF32, {2}},
+                                               {"regime", nn::DType::kI32, {}},
+                                               {"anchor", nn::DType::kI64, {}}};
+  nn::write_dataset_shard(dir, 0, columns, {images, angles, regime, anchor});
+  nlohmann::json cams = nlohmann::json::array(), list = nlohmann::json::array();
+  for (std::int64_t c = 0; c < cameras; ++c)
+    cams.push_back("cam" + std::to_string(c));
+  list.push_back({{"name", "observational"},
+                  {"joint", nullptr},
+                  {"joint_index", nullptr},
+                  {"intervention", nullptr}});
+  nlohmann::json interventions;
+  for (int j = 0; j < 2; ++j) {
+    for (int k = 1; k <= 2; ++k)
+      list.push_back({{"name", std::string("do(") + kJoints[j] + ")=" + std::to_string(k)},
+                      {"joint", kJoints[j]},
+                      {"joint_index", j},
+                      {"intervention", k}});
+    interventions[kJoints[j]] = {{{"mean", -0.6}, {"std", 0.4}, {"lower", -1.4}, {"upper", 1.4}},
+                                 {{"mean", 0.6}, {"std", 0.4}, {"lower", -1.4}, {"upper", 1.4}}};
+  }
+  const nlohmann::json metadata = {{"cameras", cams},
+                                   {"joint_names", {kJoints[0], kJoints[1]}},
+                                   {"regimes", list},
+                                   {"distribution", {{"interventions", interventions}}}};
+  nn::write_dataset_manifest(dir, columns, 1, metadata.dump());
+}
+
+// the small preset of `name`, pointed at the two joints, a few steps per stage
+ExperimentConfig few_steps(const std::string& name) {
+  nlohmann::json raw =
+      load_experiment_config(std::string(ROPES_CRL_SOURCE_CONFIGS) + "/" + name + ".json").raw;
+  raw["dataset"]["joints"] = {kJoints[0], kJoints[1]};
+  raw["ae1"]["steps"] = 3;
+  raw["ae1"]["optimizer"]["warmup"] = 0;
+  raw["ldr"]["max_epochs"] = 1;
+  raw["ae2"]["steps"] = 3;
+  raw["ae2"]["optimizer"]["warmup"] = 0;
+  raw["log_every"] = 1;
+  return ExperimentConfig::from_json(raw, name + " (few steps)");
+}
+
+class EstimatorFrame : public ::testing::TestWithParam<const char*> {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("ropes_crl_frame_" + std::to_string(::getpid()) + "_" + GetParam());
+    fs::remove_all(dir_);
+    const ExperimentConfig config = few_steps(GetParam());
+    write_dataset(dir_ / "data", config.cameras);
+    TrainOptions options;
+    options.threads = 2;
+    train(config, dir_ / "data", dir_ / "run", options);
+  }
+  void TearDown() override {
+    nn::set_num_threads(2);
+    fs::remove_all(dir_);
+  }
+  fs::path dir_;
+};
+
+TEST_P(EstimatorFrame, AllocatesNothingAfterWarmUpAndMatchesTheBatchPath) {
+  Estimator estimator = Estimator::load(dir_ / "run");
+  const std::int64_t cameras = estimator.cameras(), pixels = cameras * kSize * kSize;
+  // five frames of the training distribution's range
+  const std::int64_t frames = 5;
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(frames * pixels));
+  nn::Buffer values(bytes.size());
+  for (std::int64_t f = 0; f < frames; ++f) {
+    const double q[2] = {-1.2 + 0.6 * static_cast<double>(f), 0.9 - 0.45 * static_cast<double>(f)};
+    for (std::int64_t c = 0; c < cameras; ++c)
+      draw(q, c, &bytes[static_cast<std::size_t>(f * pixels + c * kSize * kSize)]);
+  }
+  for (std::size_t i = 0; i < bytes.size(); ++i)
+    values[i] = static_cast<float>(bytes[i]) / 255.0f;
+  const nn::Tensor batch(nn::Shape{frames, cameras, kSize, kSize}, values);
+
+  Calibration calibration;
+  calibration.joints = estimator.joints();
+  calibration.scale = {0.5, -2.0};
+  calibration.offset = {0.25, 1.0};
+  estimator.set_calibration(calibration);
+
+  for (int threads : {1, 2}) {
+    nn::set_num_threads(threads);
+    const nn::Tensor together = estimator.latents(batch);
+    float latents[2], angles[2];
+    for (int i = 0; i < 3; ++i)  // warm-up: the pool and the product workspaces fill
+      estimator.estimate_frame(bytes.data(), latents, angles);
+    nn::allocation_counter::start();
+    for (int i = 0; i < 20; ++i)
+      estimator.estimate_frame(&bytes[static_cast<std::size_t>((i % frames) * pixels)], latents,
+                               angles);
+    EXPECT_EQ(nn::allocation_counter::stop(), 0u) << threads << " thread(s)";
+
+    for (std::int64_t f = 0; f < frames; ++f) {
+      estimator.estimate_frame(&bytes[static_cast<std::size_t>(f * pixels)], latents, angles);
+      const nn::Tensor alone = estimator.latents(nn::slice(batch, 0, f, f + 1));
+      for (int k = 0; k < 2; ++k) {
+        EXPECT_EQ(latents[k], alone.data()[k]) << "frame " << f << ", joint " << k;
+        EXPECT_NEAR(latents[k], together.data()[f * 2 + k], 1e-5 * (1 + std::fabs(latents[k])))
+            << "frame " << f << ", joint " << k;
+        EXPECT_FLOAT_EQ(angles[k], static_cast<float>(calibration.scale[k] * latents[k] +
+                                                      calibration.offset[k]));
+      }
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(SmallPreset, EstimatorFrame, ::testing::Values("1c-small", "2c-small"),
+                         [](const auto& info) {
+                           return std::string(info.param[0] == '1' ? "OneCamera" : "TwoCameras");
+                         });
+
+}  // namespace
+}  // namespace ropes::crl
