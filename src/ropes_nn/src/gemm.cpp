@@ -28,8 +28,11 @@ class WorkspaceBlocking : public EigenBlocking {
  public:
   WorkspaceBlocking(Index m, Index n, Index k) : EigenBlocking(m, n, k, 1, true) {
     thread_local Buffer block_a, block_b;
-    this->m_blockA = at_least(block_a, static_cast<std::size_t>(this->m_kc * this->m_mc));
-    this->m_blockB = at_least(block_b, static_cast<std::size_t>(this->m_kc * this->m_nc));
+    // both blocks first: if growing one throws, Eigen's destructor must still see null
+    float* a = at_least(block_a, static_cast<std::size_t>(this->m_kc * this->m_mc));
+    float* b = at_least(block_b, static_cast<std::size_t>(this->m_kc * this->m_nc));
+    this->m_blockA = a;
+    this->m_blockB = b;
   }
   ~WorkspaceBlocking() {
     // the blocks belong to the workspace: keep Eigen's destructor from freeing them

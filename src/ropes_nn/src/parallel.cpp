@@ -58,7 +58,7 @@ int parallel_chunks(std::int64_t n) {
   return static_cast<int>(std::max<std::int64_t>(1, std::min<std::int64_t>(num_threads(), n)));
 }
 
-void parallel_for(std::int64_t n, int chunks, ChunkBody body) {
+void detail::parallel_for_chunks(std::int64_t n, int chunks, ChunkBody body) {
   if (n <= 0)
     return;
   ROPES_DEMAND(chunks >= 1 && chunks <= n, "parallel_for: " + std::to_string(chunks) +
@@ -68,9 +68,12 @@ void parallel_for(std::int64_t n, int chunks, ChunkBody body) {
     body(0, 0, n);
     return;
   }
+  // a team of the same size every time: libgomp builds a new team (and allocates) whenever
+  // the size changes, and the chunk count varies from kernel to kernel
+  const int team = std::max(2, num_threads());
   // an exception may not leave an OpenMP region: keep the first, rethrow it after
   std::exception_ptr failure;
-#pragma omp parallel for num_threads(chunks) schedule(static, 1)
+#pragma omp parallel for num_threads(team) schedule(static, 1)
   for (int c = 0; c < chunks; ++c) {
     try {
       body(c, n * c / chunks, n * (c + 1) / chunks);
@@ -82,12 +85,6 @@ void parallel_for(std::int64_t n, int chunks, ChunkBody body) {
   }
   if (failure)
     std::rethrow_exception(failure);
-}
-
-void parallel_for(std::int64_t n, ChunkBody body) {
-  if (n <= 0)
-    return;
-  parallel_for(n, parallel_chunks(n), body);
 }
 
 }  // namespace ropes::nn

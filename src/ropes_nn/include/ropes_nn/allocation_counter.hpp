@@ -17,6 +17,8 @@ void* __libc_malloc(std::size_t);
 void* __libc_calloc(std::size_t, std::size_t);
 void* __libc_realloc(void*, std::size_t);
 void* __libc_memalign(std::size_t, std::size_t);
+void* __libc_valloc(std::size_t);
+void* __libc_pvalloc(std::size_t);
 void __libc_free(void*);
 }
 
@@ -65,8 +67,26 @@ void* memalign(std::size_t alignment, std::size_t n) noexcept {
   ::ropes::nn::allocation_counter::detail::note();
   return __libc_memalign(alignment, n);
 }
+void* valloc(std::size_t n) noexcept {
+  ::ropes::nn::allocation_counter::detail::note();
+  return __libc_valloc(n);
+}
+void* pvalloc(std::size_t n) noexcept {
+  ::ropes::nn::allocation_counter::detail::note();
+  return __libc_pvalloc(n);
+}
+void* reallocarray(void* p, std::size_t n, std::size_t size) noexcept {
+  ::ropes::nn::allocation_counter::detail::note();
+  if (size != 0 && n > static_cast<std::size_t>(-1) / size) {
+    errno = ENOMEM;
+    return nullptr;
+  }
+  return __libc_realloc(p, n * size);
+}
 int posix_memalign(void** out, std::size_t alignment, std::size_t n) noexcept {
   ::ropes::nn::allocation_counter::detail::note();
+  if (alignment < sizeof(void*) || (alignment & (alignment - 1)) != 0)
+    return EINVAL;
   void* p = __libc_memalign(alignment, n);
   if (p == nullptr)
     return ENOMEM;

@@ -11,19 +11,17 @@
 /// same bits at every thread count.
 
 #include <cstdint>
-#include <type_traits>
-#include <utility>
 
 namespace ropes::nn {
 
-/// What parallel_for runs: a non-owning reference to a callable
-/// void(int chunk, std::int64_t begin, std::int64_t end), so that handing a lambda to
-/// parallel_for allocates nothing (a std::function may). The callable must outlive the call,
-/// which it does when it is passed directly, as in parallel_for(n, [&](...) { ... }).
+namespace detail {
+/// What parallel_for hands its implementation: a non-owning reference to the caller's
+/// callable, so that running a lambda allocates nothing (a std::function may). Built only
+/// inside parallel_for's own call, where the callable outlives it.
 class ChunkBody {
  public:
-  template <typename F, typename = std::enable_if_t<!std::is_same_v<std::decay_t<F>, ChunkBody>>>
-  ChunkBody(const F& f)  // NOLINT(google-explicit-constructor): lambdas convert implicitly
+  template <typename F>
+  explicit ChunkBody(const F& f)
       : object_(static_cast<const void*>(&f)),
         call_([](const void* o, int chunk, std::int64_t begin, std::int64_t end) {
           (*static_cast<const F*>(o))(chunk, begin, end);
@@ -36,6 +34,8 @@ class ChunkBody {
   const void* object_;
   void (*call_)(const void*, int, std::int64_t, std::int64_t);
 };
+void parallel_for_chunks(std::int64_t n, int chunks, ChunkBody body);
+}  // namespace detail
 
 /// Sets the thread count (>= 1); also Eigen's. Default: the ROPES_NUM_THREADS environment
 /// variable if set, else the number of hardware threads. Throws std::invalid_argument for
@@ -56,9 +56,18 @@ int parallel_chunks(std::int64_t n);
 /// [0, n) (chunk c gets [n c / chunks, n (c + 1) / chunks)), in parallel. Bounds depend only
 /// on n and chunks. n <= 0 does nothing. chunks must be in [1, n] (ROPES_DEMAND).
 /// An exception thrown by a body reaches the caller (the first one, after every chunk ends).
-void parallel_for(std::int64_t n, int chunks, ChunkBody body);
+/// The region always has num_threads() threads (surplus ones idle), so that OpenMP reuses
+/// one thread team for every call and a warm call allocates nothing.
+template <typename F>
+void parallel_for(std::int64_t n, int chunks, const F& body) {
+  detail::parallel_for_chunks(n, chunks, detail::ChunkBody(body));
+}
 
 /// parallel_for(n, parallel_chunks(n), body).
-void parallel_for(std::int64_t n, ChunkBody body);
+template <typename F>
+void parallel_for(std::int64_t n, const F& body) {
+  if (n > 0)
+    detail::parallel_for_chunks(n, parallel_chunks(n), detail::ChunkBody(body));
+}
 
 }  // namespace ropes::nn
