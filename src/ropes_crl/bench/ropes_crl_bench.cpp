@@ -306,6 +306,17 @@ int estimator_frames(const std::string& run, int threads) {
   return 0;
 }
 
+// the value of a count option, or 0 after a message when it is not a count >= 1
+std::int64_t count_argument(const char* flag, const char* value) {
+  char* end = nullptr;
+  const long long n = std::strtoll(value, &end, 10);
+  if (end == value || *end != '\0' || n < 1 || n > 1000000000) {
+    std::fprintf(stderr, "ropes_crl_bench: %s %s: expected a count >= 1\n", flag, value);
+    return 0;
+  }
+  return n;
+}
+
 int usage() {
   std::fprintf(stderr,
                "usage: ropes_crl_bench [--config NAME|PATH] [--anchors N] [--quick] [--no-peer]\n"
@@ -327,19 +338,16 @@ int main(int argc, char** argv) {
     } else if (!std::strcmp(argv[i], "--no-peer")) {
       peer_wanted = false;
     } else if (!std::strcmp(argv[i], "--threads") && i + 1 < argc) {
-      threads = std::atoi(argv[++i]);
-      if (threads < 1) {
-        std::fprintf(stderr, "ropes_crl_bench: --threads %s: expected a count >= 1\n", argv[i]);
+      const std::int64_t n = count_argument("--threads", argv[++i]);
+      if (n < 1)
         return 2;
-      }
+      threads = static_cast<int>(n);
     } else if (!std::strcmp(argv[i], "--config") && i + 1 < argc) {
       config_name = argv[++i];
     } else if (!std::strcmp(argv[i], "--anchors") && i + 1 < argc) {
-      anchors = std::atoll(argv[++i]);
-      if (anchors < 1) {
-        std::fprintf(stderr, "ropes_crl_bench: --anchors %s: expected a count >= 1\n", argv[i]);
+      anchors = count_argument("--anchors", argv[++i]);
+      if (anchors < 1)
         return 2;
-      }
     } else if (!std::strcmp(argv[i], "--run") && i + 1 < argc) {
       run = argv[++i];
     } else {
