@@ -88,29 +88,12 @@ MethodScores score_method(const std::string& name, const Eigen::MatrixXd& latent
   return s;
 }
 
-// ridge regression of each joint on [Y, 1] (lambda 1e-3, Y standardised): test MSE
-std::vector<double> linear_probe(const Eigen::MatrixXd& y, const Eigen::MatrixXd& angles,
-                                 const std::vector<Eigen::Index>& cal,
-                                 const std::vector<Eigen::Index>& test) {
-  const Eigen::MatrixXd yc = y(cal, Eigen::all);
-  const Eigen::RowVectorXd mu = yc.colwise().mean();
-  Eigen::RowVectorXd sd = ((yc.rowwise() - mu).array().square().colwise().mean()).sqrt();
-  sd = (sd.array() > 1e-8).select(sd, 1.0);
-  auto design = [&](const Eigen::MatrixXd& m) {
-    Eigen::MatrixXd x(m.rows(), m.cols() + 1);
-    x.leftCols(m.cols()) = (m.rowwise() - mu).array().rowwise() / sd.array();
-    x.col(m.cols()).setOnes();
-    return x;
-  };
-  const Eigen::MatrixXd xc = design(yc), xt = design(y(test, Eigen::all));
-  Eigen::MatrixXd gram = xc.transpose() * xc;
-  gram.diagonal().array() += 1e-3 * static_cast<double>(xc.rows());
-  const Eigen::MatrixXd w = gram.ldlt().solve(xc.transpose() * angles(cal, Eigen::all));
-  const Eigen::MatrixXd err = xt * w - angles(test, Eigen::all);
-  std::vector<double> out;
-  for (Eigen::Index k = 0; k < err.cols(); ++k)
-    out.push_back(err.col(k).array().square().mean());
-  return out;
+// 1 / sd of each column, and 0 for a column that barely varies on the calibration samples
+// (sd <= 1e-3 of the largest): dividing one by its tiny sd would turn the differences the
+// test samples show there into huge values, and it carries no information the fit can use
+Eigen::RowVectorXd inverse_spread(const Eigen::RowVectorXd& sd) {
+  const double largest = sd.size() > 0 ? sd.maxCoeff() : 0.0;
+  return (sd.array() > 1e-3 * largest).select(sd.array().inverse(), 0.0);
 }
 
 // a small MLP from Y to all joints (Y -> 128 -> 128 -> J, ReLU, standardised targets),
@@ -128,9 +111,8 @@ std::vector<double> mlp_probe(const Eigen::MatrixXd& y, const Eigen::MatrixXd& a
   net.add(std::make_shared<nn::Dense>(128, j));
   net.initialize(seed);
   const Eigen::RowVectorXd ymu = y(cal, Eigen::all).colwise().mean();
-  Eigen::RowVectorXd ysd =
-      ((y(cal, Eigen::all).rowwise() - ymu).array().square().colwise().mean()).sqrt();
-  ysd = (ysd.array() > 1e-8).select(ysd, 1.0);
+  const Eigen::RowVectorXd yinv = inverse_spread(
+      ((y(cal, Eigen::all).rowwise() - ymu).array().square().colwise().mean()).sqrt());
   const Eigen::RowVectorXd amu = angles(cal, Eigen::all).colwise().mean();
   const Eigen::RowVectorXd asd =
       ((angles(cal, Eigen::all).rowwise() - amu).array().square().colwise().mean()).sqrt();
@@ -141,7 +123,7 @@ std::vector<double> mlp_probe(const Eigen::MatrixXd& y, const Eigen::MatrixXd& a
         v[static_cast<std::size_t>(r * m.cols() + c)] = static_cast<float>(m(r, c));
     return Tensor(Shape{m.rows(), m.cols()}, v);
   };
-  const Eigen::MatrixXd xs = (y.rowwise() - ymu).array().rowwise() / ysd.array();
+  const Eigen::MatrixXd xs = (y.rowwise() - ymu).array().rowwise() * yinv.array();
   const Eigen::MatrixXd ts = (angles.rowwise() - amu).array().rowwise() / asd.array();
   nn::Adam adam(net.named_parameters(), nn::AdamOptions{1e-3});
   const std::int64_t n = static_cast<std::int64_t>(cal.size());
@@ -292,7 +274,7 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
   if (estimator.has_lambda0())
     ev.methods.push_back(score_method("lambda0_autoencoder", z0, angles, cal, test));
   ev.methods.push_back(score_method("ldr_logit", logit, angles, cal, test));
-  ev.probe_linear_mse = linear_probe(y, angles, cal, test);
+  ev.probe_linear_mse = detail::linear_probe(y, angles, cal, test);
   if (options.probe_steps > 0)
     ev.probe_mlp_mse = mlp_probe(y, angles, cal, test, options.probe_steps, options.seed);
   for (std::int64_t k = 0; k < jn; ++k) {
@@ -375,6 +357,30 @@ std::string RunEvaluation::table() const {
         << fmt(bayes_accuracy[k]) << " |\n";
   }
   return out.str();
+}
+
+std::vector<double> detail::linear_probe(const Eigen::MatrixXd& y, const Eigen::MatrixXd& angles,
+                                         const std::vector<Eigen::Index>& cal,
+                                         const std::vector<Eigen::Index>& test) {
+  const Eigen::MatrixXd yc = y(cal, Eigen::all);
+  const Eigen::RowVectorXd mu = yc.colwise().mean();
+  const Eigen::RowVectorXd inv =
+      inverse_spread(((yc.rowwise() - mu).array().square().colwise().mean()).sqrt());
+  auto design = [&](const Eigen::MatrixXd& m) {
+    Eigen::MatrixXd x(m.rows(), m.cols() + 1);
+    x.leftCols(m.cols()) = (m.rowwise() - mu).array().rowwise() * inv.array();
+    x.col(m.cols()).setOnes();
+    return x;
+  };
+  const Eigen::MatrixXd xc = design(yc), xt = design(y(test, Eigen::all));
+  Eigen::MatrixXd gram = xc.transpose() * xc;
+  gram.diagonal().array() += 1e-3 * static_cast<double>(xc.rows());
+  const Eigen::MatrixXd w = gram.ldlt().solve(xc.transpose() * angles(cal, Eigen::all));
+  const Eigen::MatrixXd err = xt * w - angles(test, Eigen::all);
+  std::vector<double> out;
+  for (Eigen::Index k = 0; k < err.cols(); ++k)
+    out.push_back(err.col(k).array().square().mean());
+  return out;
 }
 
 }  // namespace ropes::eval

@@ -9,6 +9,7 @@
 /// and the diagnostics (supervised probes from Y to each joint — a linear one and a small MLP,
 /// fitted on the calibration half — and the LDR's held-out accuracy against Bayes). Labels
 /// (the angles) are read here only.
+#include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
 #include <cstdint>
@@ -56,5 +57,16 @@ RunEvaluation evaluate_run(const std::filesystem::path& run_dir,
 
 /// The installed paper_results.json.
 std::filesystem::path installed_paper_results();
+
+namespace detail {
+/// The linear probe of the diagnostics: ridge regression (lambda 1e-3) of each column of
+/// `angles` on [Y, 1] fitted on rows `cal`, Y standardised with the calibration rows'
+/// statistics; a column of Y whose sd there is <= 1e-3 of the largest column's is left out
+/// (its calibration values carry nothing, and dividing by their tiny spread would blow up
+/// the test rows). Returns the test rows' MSE per angle column.
+std::vector<double> linear_probe(const Eigen::MatrixXd& y, const Eigen::MatrixXd& angles,
+                                 const std::vector<Eigen::Index>& cal,
+                                 const std::vector<Eigen::Index>& test);
+}  // namespace detail
 
 }  // namespace ropes::eval
