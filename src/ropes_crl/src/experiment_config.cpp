@@ -122,11 +122,13 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
     const nlohmann::json& l = field(j, "config", "ldr");
     reject_unknown_keys(l, "config.ldr",
                         {"widths", "hidden", "batch_size", "max_epochs", "patience",
-                         "held_out_fraction", "optimizer"});
+                         "held_out_fraction", "optimizer", "input_normalization"});
     c.ldr.in_channels = c.code_channels();
     c.ldr.input_size = side;
     c.ldr.widths = get_ints(l, "config.ldr", "widths");
     c.ldr.hidden = get_int(l, "config.ldr", "hidden");
+    if (l.contains("input_normalization"))  // optional: "none", the paper's, when absent
+      c.ldr.input_normalization = get_string(l, "config.ldr", "input_normalization");
     if (const std::string p = c.ldr.problem(); !p.empty())
       throw std::invalid_argument("config." + p);
     c.ldr_training.batch_size = get_int(l, "config.ldr", "batch_size");
@@ -149,7 +151,7 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
         {"kind", "latent_dim", "widths", "decoder_widths", "blocks_per_stage", "activation", "mode",
          "lambda", "sparsity_norm", "sparsity_diagonal", "score_normalization", "score_samples",
          "batch_size", "sparsity_batch_size", "steps", "micro_batch", "optimizer",
-         "lambda0_baseline"});
+         "lambda0_baseline", "input_normalization"});
     c.ae2.kind = get_string(a2, "config.ae2", "kind");
     c.ae2.in_channels = c.code_channels();
     c.ae2.input_size = side;
@@ -158,6 +160,8 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
     c.ae2.decoder_widths = get_ints(a2, "config.ae2", "decoder_widths");
     c.ae2.blocks_per_stage = static_cast<int>(get_int(a2, "config.ae2", "blocks_per_stage"));
     c.ae2.activation = get_string(a2, "config.ae2", "activation");
+    if (a2.contains("input_normalization"))  // optional: "none", the paper's, when absent
+      c.ae2.input_normalization = get_string(a2, "config.ae2", "input_normalization");
     if (const std::string p = c.ae2.problem(); !p.empty())
       throw std::invalid_argument("config." + p);
     Ae2Training& t = c.ae2_training;
@@ -172,9 +176,11 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
     if (a2.contains("sparsity_diagonal"))
       t.diagonal = parse_sparsity_diagonal(get_string(a2, "config.ae2", "sparsity_diagonal"));
     t.score_normalization = get_string(a2, "config.ae2", "score_normalization");
-    if (t.score_normalization != "none" && t.score_normalization != "unit")
+    if (t.score_normalization != "none" && t.score_normalization != "unit" &&
+        t.score_normalization != "mean_unit")
       throw std::invalid_argument(
-          "config.ae2.score_normalization: expected \"none\" or \"unit\", got \"" +
+          "config.ae2.score_normalization: expected \"none\", \"unit\" or \"mean_unit\", "
+          "got \"" +
           t.score_normalization + "\"");
     t.score_samples = get_string(a2, "config.ae2", "score_samples");
     if (t.score_samples != "intervened" && t.score_samples != "all")

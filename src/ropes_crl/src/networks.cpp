@@ -2,6 +2,9 @@
 
 #include <ropes_nn/ops.hpp>
 
+#include <algorithm>
+#include <cctype>
+#include <cmath>
 #include <stdexcept>
 
 #include "json_fields.hpp"
@@ -9,6 +12,28 @@
 namespace ropes::crl {
 
 namespace {
+
+// every parameter but those of a CodeStandardization registered as "input"
+std::vector<std::pair<std::string, Tensor>> without_input_map(
+    std::vector<std::pair<std::string, Tensor>> all) {
+  std::vector<std::pair<std::string, Tensor>> out;
+  for (auto& entry : all)
+    if (entry.first.rfind("input.", 0) != 0)
+      out.push_back(std::move(entry));
+  return out;
+}
+
+// fit_input_standardization of the network `net` ("ldr", "ae2") whose input map is `map`
+void fit_input_map(CodeStandardization* map, const std::string& net,
+                   const std::string& normalization, const Tensor& codes) {
+  std::string who = net;
+  who[0] = static_cast<char>(std::toupper(static_cast<unsigned char>(who[0])));
+  who += "::fit_input_standardization";
+  if (!map)
+    throw std::logic_error(who + ": " + net + ".input_normalization is \"" + normalization +
+                           "\", not \"standardize\"");
+  map->fit(codes, who);
+}
 
 using nn::Conv2d;
 using nn::ConvTranspose2d;
@@ -141,6 +166,77 @@ Tensor Ae1::decode(const Tensor& code) {
   return (*decoder_)(code);
 }
 
+// --- CodeStandardization --------------------------------------------------------------------
+CodeStandardization::CodeStandardization(std::int64_t channels, std::int64_t side) {
+  shift_ = register_parameter("shift", nn::Shape{channels, side, side}, "zeros");
+  scale_ = register_parameter("scale", nn::Shape{channels, side, side}, "ones");
+}
+
+Tensor CodeStandardization::forward(const Tensor& y) {
+  return nn::mul(nn::sub(y, shift_), scale_);
+}
+
+void CodeStandardization::fit(const Tensor& codes, const std::string& who) {
+  const nn::Shape& want = scale_.shape();
+  if (codes.rank() != 4 || codes.shape()[0] < 1 || codes.shape()[1] != want[0] ||
+      codes.shape()[2] != want[1] || codes.shape()[3] != want[2])
+    throw std::invalid_argument(who + ": codes are " + codes.shape().str() +
+                                ", expected [n >= 1, " + std::to_string(want[0]) + ", " +
+                                std::to_string(want[1]) + ", " + std::to_string(want[2]) + "]");
+  const std::int64_t n = codes.shape()[0], per = scale_.numel();
+  const float* y = codes.data();
+  std::vector<double> mean(static_cast<std::size_t>(per), 0.0), sd(mean.size(), 0.0);
+  for (std::int64_t r = 0; r < n; ++r)
+    for (std::int64_t k = 0; k < per; ++k) {
+      const float v = y[r * per + k];
+      if (!std::isfinite(v))
+        throw std::invalid_argument(who + ": code " + std::to_string(r) + " holds " +
+                                    std::to_string(v) + " at element " + std::to_string(k) +
+                                    "; expected finite values");
+      mean[static_cast<std::size_t>(k)] += v;
+    }
+  for (double& m : mean)
+    m /= static_cast<double>(n);
+  for (std::int64_t r = 0; r < n; ++r)
+    for (std::int64_t k = 0; k < per; ++k) {
+      const double d = y[r * per + k] - mean[static_cast<std::size_t>(k)];
+      sd[static_cast<std::size_t>(k)] += d * d;
+    }
+  double largest = 0;
+  for (double& v : sd) {
+    v = std::sqrt(v / static_cast<double>(n));
+    largest = std::max(largest, v);
+  }
+  if (!(largest > 0))
+    throw std::invalid_argument(who + ": the " + std::to_string(n) +
+                                " codes are all equal; AE1 encodes every image alike");
+  float* shift = shift_.mutable_data();
+  float* scale = scale_.mutable_data();
+  for (std::int64_t k = 0; k < per; ++k) {
+    const double v = sd[static_cast<std::size_t>(k)];
+    shift[k] = static_cast<float>(mean[static_cast<std::size_t>(k)]);
+    scale[k] = v <= 1e-3 * largest ? 0.0f : static_cast<float>(1.0 / std::max(v, 1e-2 * largest));
+  }
+  mark_initialized("shift");
+  mark_initialized("scale");
+}
+
+Tensor CodeStandardization::to_mapped_gradient(const Tensor& g) const {
+  const std::int64_t per = scale_.numel();
+  const nn::Shape& want = scale_.shape();
+  if (g.rank() != 4 || g.shape()[1] != want[0] || g.shape()[2] != want[1] ||
+      g.shape()[3] != want[2])
+    throw std::invalid_argument("CodeStandardization::to_mapped_gradient: gradient is " +
+                                g.shape().str() + ", expected [n, " + scale_.shape().str() + "]");
+  std::vector<float> out(g.data(), g.data() + g.numel());
+  const float* scale = scale_.data();
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    const float s = scale[static_cast<std::int64_t>(i) % per];
+    out[i] = s == 0.0f ? 0.0f : out[i] / s;
+  }
+  return Tensor(g.shape(), out);
+}
+
 // --- LDR ------------------------------------------------------------------------------------
 std::string LdrSpec::problem() const {
   if (in_channels < 1)
@@ -153,6 +249,9 @@ std::string LdrSpec::problem() const {
            ", got " + std::to_string(input_size);
   if (hidden < 1)
     return "ldr.hidden: expected >= 1, got " + std::to_string(hidden);
+  if (input_normalization != "none" && input_normalization != "standardize")
+    return "ldr.input_normalization: expected \"none\" or \"standardize\", got \"" +
+           input_normalization + "\"";
   return "";
 }
 
@@ -160,7 +259,8 @@ nlohmann::json LdrSpec::to_json() const {
   return {{"in_channels", in_channels},
           {"input_size", input_size},
           {"widths", widths},
-          {"hidden", hidden}};
+          {"hidden", hidden},
+          {"input_normalization", input_normalization}};
 }
 
 LdrSpec LdrSpec::from_json(const nlohmann::json& j) {
@@ -170,6 +270,9 @@ LdrSpec LdrSpec::from_json(const nlohmann::json& j) {
   s.input_size = get_int(j, "ldr", "input_size");
   s.widths = get_ints(j, "ldr", "widths");
   s.hidden = get_int(j, "ldr", "hidden");
+  // weight files written before the option existed have no input map
+  if (j.contains("input_normalization"))
+    s.input_normalization = get_string(j, "ldr", "input_normalization");
   if (const std::string p = s.problem(); !p.empty())
     throw std::invalid_argument(p);
   return s;
@@ -178,8 +281,10 @@ LdrSpec LdrSpec::from_json(const nlohmann::json& j) {
 Ldr::Ldr(const LdrSpec& spec) : spec_(spec) {
   if (const std::string p = spec.problem(); !p.empty())
     throw std::invalid_argument("Ldr: " + p);
-  features_ = register_module("features", std::make_shared<Sequential>());
   std::int64_t c = spec.in_channels, side = spec.input_size;
+  if (spec.input_normalization == "standardize")
+    input_ = register_module("input", std::make_shared<CodeStandardization>(c, side));
+  features_ = register_module("features", std::make_shared<Sequential>());
   for (std::int64_t w : spec.widths) {
     features_->add(std::make_shared<Conv2d>(c, w, 3, 1, Padding2d::valid()));
     features_->add(std::make_shared<nn::ReLU>());
@@ -191,12 +296,24 @@ Ldr::Ldr(const LdrSpec& spec) : spec_(spec) {
 }
 
 Tensor Ldr::forward(const Tensor& y) {
-  const Tensor logit = (*out_)(nn::relu((*hidden_)(nn::flatten((*features_)(y)))));
+  const Tensor x = input_ ? (*input_)(y) : y;
+  const Tensor logit = (*out_)(nn::relu((*hidden_)(nn::flatten((*features_)(x)))));
   return nn::reshape(logit, nn::Shape{logit.shape()[0]});
+}
+
+void Ldr::fit_input_standardization(const Tensor& codes) {
+  fit_input_map(input_.get(), "ldr", spec_.input_normalization, codes);
+}
+
+std::vector<std::pair<std::string, Tensor>> Ldr::trained_parameters() const {
+  return without_input_map(named_parameters());
 }
 
 // --- AE2 ------------------------------------------------------------------------------------
 std::string Ae2Spec::problem() const {
+  if (input_normalization != "none" && input_normalization != "standardize")
+    return "ae2.input_normalization: expected \"none\" or \"standardize\", got \"" +
+           input_normalization + "\"";
   if (kind != "conv" && kind != "mlp")
     return "ae2.kind: expected \"conv\" or \"mlp\", got \"" + kind + "\"";
   if (in_channels < 1)
@@ -235,7 +352,8 @@ nlohmann::json Ae2Spec::to_json() const {
           {"widths", widths},
           {"decoder_widths", decoder_widths},
           {"blocks_per_stage", blocks_per_stage},
-          {"activation", activation}};
+          {"activation", activation},
+          {"input_normalization", input_normalization}};
 }
 
 Ae2Spec Ae2Spec::from_json(const nlohmann::json& j) {
@@ -249,6 +367,9 @@ Ae2Spec Ae2Spec::from_json(const nlohmann::json& j) {
   s.decoder_widths = get_ints(j, "ae2", "decoder_widths");
   s.blocks_per_stage = static_cast<int>(get_int(j, "ae2", "blocks_per_stage"));
   s.activation = get_string(j, "ae2", "activation");
+  // weight files written before the option existed have no input map
+  if (j.contains("input_normalization"))
+    s.input_normalization = get_string(j, "ae2", "input_normalization");
   if (const std::string p = s.problem(); !p.empty())
     throw std::invalid_argument(p);
   return s;
@@ -257,6 +378,9 @@ Ae2Spec Ae2Spec::from_json(const nlohmann::json& j) {
 Ae2::Ae2(const Ae2Spec& spec) : spec_(spec) {
   if (const std::string p = spec.problem(); !p.empty())
     throw std::invalid_argument("Ae2: " + p);
+  if (spec.input_normalization == "standardize")
+    input_ = register_module(
+        "input", std::make_shared<CodeStandardization>(spec.in_channels, spec.input_size));
   const std::int64_t inputs = spec.in_channels * spec.input_size * spec.input_size;
   if (spec.kind == "mlp") {
     std::int64_t c = inputs;
@@ -300,7 +424,20 @@ Tensor Ae2::activate(const Tensor& x) const {
   return spec_.activation == "silu" ? nn::mul(x, nn::sigmoid(x)) : nn::relu(x);
 }
 
-Tensor Ae2::encode(const Tensor& y) {
+Tensor Ae2::coordinates(const Tensor& y) {
+  return input_ ? (*input_)(y) : y;
+}
+
+void Ae2::fit_input_standardization(const Tensor& codes) {
+  fit_input_map(input_.get(), "ae2", spec_.input_normalization, codes);
+}
+
+std::vector<std::pair<std::string, Tensor>> Ae2::trained_parameters() const {
+  return without_input_map(named_parameters());
+}
+
+Tensor Ae2::encode(const Tensor& y_in) {
+  const Tensor y = coordinates(y_in);
   if (spec_.kind == "mlp") {
     Tensor h = nn::flatten(y);
     for (const auto& layer : mlp_encoder_)

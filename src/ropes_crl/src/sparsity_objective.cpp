@@ -33,6 +33,24 @@ Tensor unit_length_rows(const Tensor& v) {
   return Tensor(v.shape(), out);
 }
 
+Tensor mean_unit_length_rows(const Tensor& v) {
+  const std::int64_t n = v.shape()[0];
+  const std::int64_t per = v.numel() / std::max<std::int64_t>(n, 1);
+  double length = 0;
+  for (std::int64_t i = 0; i < n; ++i) {
+    double s = 0;
+    for (std::int64_t j = 0; j < per; ++j)
+      s += static_cast<double>(v.data()[i * per + j]) * v.data()[i * per + j];
+    length += std::sqrt(s);
+  }
+  length /= static_cast<double>(std::max<std::int64_t>(n, 1));
+  const double scale = length > 0 ? 1.0 / length : 1.0;
+  std::vector<float> out(v.data(), v.data() + v.numel());
+  for (float& x : out)
+    x = static_cast<float>(x * scale);
+  return Tensor(v.shape(), out);
+}
+
 Tensor sparsity_penalty(const Tensor& mean_abs, std::int64_t target, SparsityNorm norm,
                         const Tensor& signed_mean) {
   const std::int64_t d = mean_abs.numel();
@@ -141,7 +159,8 @@ nn::BatchLoss ae2_batch_loss(Ae2& ae2, const Ae2Batch& batch, double lambda, Spa
     // reconstruction: mean squared error per sample on its rows, 0 elsewhere
     Tensor recon;
     if (y_r.defined())
-      recon = nn::mul_scalar(nn::mean(nn::square(nn::sub(ae2(y_r), y_r)), {1, 2, 3}), scale_r);
+      recon = nn::mul_scalar(
+          nn::mean(nn::square(nn::sub(ae2(y_r), ae2.coordinates(y_r))), {1, 2, 3}), scale_r);
     stats.push_back(
         join({recon, rows > sizes[0] ? Tensor::zeros(Shape{rows - sizes[0]}) : Tensor()}));
     // term k's rows of `per_term`, zeros elsewhere: |J_g^T v_k| first, then the signed ones

@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <cstring>
 #include <map>
+#include <memory>
 #include <set>
 #include <stdexcept>
 
@@ -249,7 +250,6 @@ LdrOutcome train_ldr(const ExperimentConfig& config, const TrainingData& data,
   const LdrTraining& t = config.ldr_training;
   Ldr net(config.ldr);
   net.initialize(derive_seed(options.seed, "ldr.init." + joint.name));
-  nn::Adam adam(net.named_parameters(), nn::AdamOptions{t.optimizer.lr});
   std::vector<std::int64_t> train_rows, held_rows;
   for (std::int64_t r : joint.rows)
     (data.held_out_anchor(r) ? held_rows : train_rows).push_back(r);
@@ -258,6 +258,11 @@ LdrOutcome train_ldr(const ExperimentConfig& config, const TrainingData& data,
                                 std::to_string(joint.rows.size()) +
                                 " interventional samples leaves one side empty; the dataset "
                                 "needs more anchors");
+  // the statistics of every code of the training anchors (all regimes), never of the
+  // held-out anchors that early stopping reads
+  if (config.ldr.input_normalization == "standardize")
+    net.fit_input_standardization(data.training_anchor_codes());
+  nn::Adam adam(net.trained_parameters(), nn::AdamOptions{t.optimizer.lr});
   const std::int64_t batches =
       (static_cast<std::int64_t>(train_rows.size()) + t.batch_size - 1) / t.batch_size;
   nn::LrSchedule schedule = t.optimizer.make_schedule(batches * t.max_epochs);
@@ -354,7 +359,9 @@ void train_ae2(const ExperimentConfig& config, const TrainingData& data, const S
   const Ae2Training& t = config.ae2_training;
   Ae2 net(config.ae2);
   net.initialize(derive_seed(options.seed, "ae2.init." + model.name));
-  nn::Adam adam(net.named_parameters(), nn::AdamOptions{t.optimizer.lr});
+  if (config.ae2.input_normalization == "standardize")
+    net.fit_input_standardization(data.training_anchor_codes());
+  nn::Adam adam(net.trained_parameters(), nn::AdamOptions{t.optimizer.lr});
   nn::LrSchedule schedule = t.optimizer.make_schedule(t.steps);
   const fs::path weights = ae2_file(run_dir, model.name), checkpoint = checkpoint_of(weights);
   if (fs::exists(checkpoint))
@@ -500,8 +507,14 @@ void train(const ExperimentConfig& config_in, const fs::path& data_dir, const fs
     write_json_file(run_json, run);
   }
 
-  // score differences v_k(y) = grad_y LDR_k(y), from the frozen classifiers
-  const ScoreTable scores = ScoreTable::compute(config, data, run_dir);
+  // score differences v_k(y) = grad_y LDR_k(y), from the frozen classifiers, in AE2's
+  // coordinates (its input map is fitted on the same codes in train_ae2)
+  std::unique_ptr<CodeStandardization> ae2_map;
+  if (config.ae2.input_normalization == "standardize") {
+    ae2_map = std::make_unique<CodeStandardization>(config.ae2.in_channels, config.ae2.input_size);
+    ae2_map->fit(data.training_anchor_codes(), "ae2.input_normalization");
+  }
+  const ScoreTable scores = ScoreTable::compute(config, data, run_dir, ae2_map.get());
 
   // stage 3: AE2 (one a joint, or one for all) and the lambda = 0 baseline
   for (const Ae2Model& model : ae2_models(config)) {

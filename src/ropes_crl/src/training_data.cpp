@@ -144,8 +144,16 @@ nn::Tensor TrainingData::labels_of(const std::vector<std::int64_t>& picked,
   return nn::Tensor(nn::Shape{static_cast<std::int64_t>(picked.size())}, v);
 }
 
+nn::Tensor TrainingData::training_anchor_codes() const {
+  std::vector<std::int64_t> picked;
+  for (std::int64_t r = 0; r < rows; ++r)
+    if (!held_out_anchor(r))
+      picked.push_back(r);
+  return codes_of(picked);
+}
+
 ScoreTable ScoreTable::compute(const ExperimentConfig& config, const TrainingData& data,
-                               const fs::path& run_dir) {
+                               const fs::path& run_dir, const CodeStandardization* ae2_map) {
   ScoreTable t;
   t.code_shape = data.code_shape;
   const std::int64_t per = data.code_shape[0] * data.code_shape[1] * data.code_shape[2];
@@ -166,9 +174,17 @@ ScoreTable ScoreTable::compute(const ExperimentConfig& config, const TrainingDat
       nn::Tensor y = data.codes_of(part);
       y.set_requires_grad(true);
       nn::Tensor v = nn::grad({nn::sum(ldr(y))}, {y})[0];
+      if (ae2_map)
+        v = ae2_map->to_mapped_gradient(v);
       if (config.ae2_training.score_normalization == "unit")
         v = unit_length_rows(v);
       std::copy_n(v.data(), v.numel(), values.data() + b * static_cast<std::size_t>(per));
+    }
+    if (config.ae2_training.score_normalization == "mean_unit") {
+      // one divisor for all of the joint's rows, so it comes after every batch
+      std::vector<std::int64_t> shape = {static_cast<std::int64_t>(rows.size())};
+      shape.insert(shape.end(), data.code_shape.begin(), data.code_shape.end());
+      values = mean_unit_length_rows(nn::Tensor(nn::Shape(shape), values)).to_vector();
     }
     t.rows.push_back(std::move(rows));
     t.values.push_back(std::move(values));

@@ -42,6 +42,9 @@ struct TrainingData {
     return held_out_anchors.count(anchor[static_cast<std::size_t>(row)]) != 0;
   }
   void load_codes(const std::filesystem::path& path);
+  /// The codes of every row of the training anchors (not held out): what the input maps of
+  /// the LDRs and AE2 are fitted on. [rows, C, 8, 8]
+  nn::Tensor training_anchor_codes() const;
   nn::Tensor codes_of(const std::vector<std::int64_t>& rows) const;
   /// 1 where regime == positive, else 0: [rows.size()]
   nn::Tensor labels_of(const std::vector<std::int64_t>& rows, std::int32_t positive) const;
@@ -53,8 +56,11 @@ struct ScoreTable {
   std::vector<std::vector<float>> values;       ///< per joint: [rows, C, 8, 8]
   std::vector<std::int64_t> code_shape;
 
+  /// `ae2_map`: AE2's input map when it standardises its codes (the scores are then moved
+  /// to its coordinates before any unit normalisation), else null.
   static ScoreTable compute(const ExperimentConfig& config, const TrainingData& data,
-                            const std::filesystem::path& run_dir);
+                            const std::filesystem::path& run_dir,
+                            const CodeStandardization* ae2_map);
   std::vector<std::int64_t> dataset_rows(std::size_t joint,
                                          const std::vector<std::int64_t>& picked) const;
   nn::Tensor scores_of(std::size_t joint, const std::vector<std::int64_t>& picked) const;

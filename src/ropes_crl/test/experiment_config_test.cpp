@@ -62,6 +62,20 @@ TEST(ExperimentConfig, ErrorsNameTheFileTheFieldAndTheValue) {
   j["ae2"]["sparsity_diagonal"] = "signed";
   EXPECT_NE(error_of(j).find("sparsity_diagonal: 'signed'"), std::string::npos) << error_of(j);
   j = c.raw;
+  j["ldr"]["input_normalization"] = "whiten";
+  EXPECT_NE(error_of(j).find("config.ldr.input_normalization: expected \"none\" or "
+                             "\"standardize\", got \"whiten\""),
+            std::string::npos)
+      << error_of(j);
+  j = c.raw;
+  j["ae2"]["input_normalization"] = 1;
+  EXPECT_NE(error_of(j).find("config.ae2.input_normalization"), std::string::npos) << error_of(j);
+  j = c.raw;
+  j["ae2"]["score_normalization"] = "mean";
+  EXPECT_NE(error_of(j).find("expected \"none\", \"unit\" or \"mean_unit\", got \"mean\""),
+            std::string::npos)
+      << error_of(j);
+  j = c.raw;
   j["ae2"]["latent_dim"] = 2;  // three joints need three latents
   EXPECT_NE(error_of(j).find("config.ae2.latent_dim: 2"), std::string::npos) << error_of(j);
   j = c.raw;

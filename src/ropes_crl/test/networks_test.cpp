@@ -1,9 +1,12 @@
 #include "ropes_crl/networks.hpp"
 
+#include <ropes_nn/adam.hpp>
 #include <ropes_nn/ops.hpp>
+#include <ropes_nn/train_step.hpp>
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <stdexcept>
 
 using namespace ropes::crl;
@@ -85,4 +88,186 @@ TEST(Networks, SpecsSayWhatIsWrong) {
   d.stem = "patchify";
   d.widths = {32, 64};
   EXPECT_EQ(Ae1Spec::from_json(d.to_json()).to_json(), d.to_json());
+}
+
+TEST(Networks, LdrStandardizesItsInputWithTheStatisticsOfTheCodes) {
+  // 40 codes [1, 8, 8]: element k has mean k/10 and a spread that grows with k; element 0
+  // is constant, element 1 varies by 1e-5 of the widest (below 0.001: not seen), element 2
+  // by 0.005 of it (between 0.001 and 0.01: scaled as if it were 0.01)
+  const std::int64_t n = 40, per = 64;
+  std::vector<float> v(static_cast<std::size_t>(n * per));
+  for (std::int64_t r = 0; r < n; ++r)
+    for (std::int64_t k = 0; k < per; ++k) {
+      const double wave = std::sin(0.7 * static_cast<double>(r) + 1.3 * static_cast<double>(k));
+      const double spread = k == 0 ? 0.0 : k == 1 ? 2e-5 : k == 2 ? 1e-2 : 0.05 * (k - 2);
+      v[static_cast<std::size_t>(r * per + k)] = static_cast<float>(k / 10.0 + spread * wave);
+    }
+  const Tensor codes(Shape{n, 1, 8, 8}, v);
+  LdrSpec s;
+  s.input_normalization = "standardize";
+  Ldr ldr(s);
+  ldr.initialize(5);
+  ldr.fit_input_standardization(codes);
+
+  // the witness: mean and population sd of each element in double, the rule of the header
+  std::vector<double> mean(per, 0.0), sd(per, 0.0);
+  for (std::int64_t r = 0; r < n; ++r)
+    for (std::int64_t k = 0; k < per; ++k)
+      mean[k] += v[static_cast<std::size_t>(r * per + k)] / static_cast<double>(n);
+  for (std::int64_t r = 0; r < n; ++r)
+    for (std::int64_t k = 0; k < per; ++k)
+      sd[k] += std::pow(v[static_cast<std::size_t>(r * per + k)] - mean[k], 2) / n;
+  double widest = 0;
+  for (double& d : sd)
+    widest = std::max(widest, d = std::sqrt(d));
+  std::vector<float> shift, scale;
+  for (const auto& [name, t] : ldr.named_parameters()) {
+    if (name == "input.shift")
+      shift = t.to_vector();
+    if (name == "input.scale")
+      scale = t.to_vector();
+  }
+  ASSERT_EQ(shift.size(), 64u);
+  ASSERT_EQ(scale.size(), 64u);
+  EXPECT_EQ(scale[0], 0.0f);
+  EXPECT_EQ(scale[1], 0.0f);
+  EXPECT_NEAR(scale[2], 1.0 / (0.01 * widest), 1e-4 / (0.01 * widest));
+  for (std::int64_t k = 0; k < per; ++k) {
+    EXPECT_NEAR(shift[k], mean[k], 1e-6) << k;
+    if (k >= 3) {
+      EXPECT_NEAR(scale[k], 1.0 / sd[k], 1e-4 / sd[k]) << k;
+    }
+  }
+
+  // the logit is the plain LDR's (same seed, same parameter names) on (y - shift) * scale,
+  // and the gradient in y is the plain one times the scale: exactly 0 where the scale is
+  LdrSpec plain_spec;
+  Ldr plain(plain_spec);
+  plain.initialize(5);
+  std::vector<float> mapped(v.size());
+  for (std::size_t i = 0; i < v.size(); ++i)
+    mapped[i] = (v[i] - shift[i % per]) * scale[i % per];
+  Tensor y = codes, x(Shape{n, 1, 8, 8}, mapped);
+  y.set_requires_grad(true);
+  x.set_requires_grad(true);
+  const Tensor a = ldr(y), b = plain(x);
+  for (std::int64_t r = 0; r < n; ++r)
+    EXPECT_NEAR(a.data()[r], b.data()[r], 1e-5) << r;
+  const Tensor ga = ropes::nn::grad({ropes::nn::sum(a)}, {y})[0];
+  const Tensor gb = ropes::nn::grad({ropes::nn::sum(b)}, {x})[0];
+  for (std::int64_t i = 0; i < n * per; ++i) {
+    if (scale[i % per] == 0.0f) {
+      EXPECT_EQ(ga.data()[i], 0.0f) << i;
+    } else {
+      EXPECT_NEAR(ga.data()[i], gb.data()[i] * scale[i % per],
+                  1e-4 * std::abs(gb.data()[i] * scale[i % per]) + 1e-6)
+          << i;
+    }
+  }
+
+  // the gradient moved to the map's coordinates is the plain LDR's gradient there (0 where
+  // the map hides the element): d/ds = d/dy / scale
+  const Tensor moved = ldr.input_map()->to_mapped_gradient(ga);
+  for (std::int64_t i = 0; i < n * per; ++i) {
+    const float want = scale[i % per] == 0.0f ? 0.0f : gb.data()[i];
+    EXPECT_NEAR(moved.data()[i], want, 1e-4 * std::abs(want) + 1e-6) << i;
+  }
+
+  // an optimiser of trained_parameters() leaves the map as it was fitted
+  EXPECT_EQ(ldr.trained_parameters().size() + 2, ldr.named_parameters().size());
+  ropes::nn::Adam adam(ldr.trained_parameters());
+  std::vector<float> ones(static_cast<std::size_t>(n), 1.0f);
+  const Tensor labels(Shape{n}, ones);
+  for (int step = 0; step < 3; ++step)
+    ropes::nn::train_step(adam, ropes::nn::mean_loss([&](std::size_t) {
+                            return ropes::nn::bce_with_logits_elementwise(ldr(codes), labels);
+                          }));
+  for (const auto& [name, t] : ldr.named_parameters()) {
+    if (name == "input.shift") {
+      EXPECT_EQ(t.to_vector(), shift);
+    }
+    if (name == "input.scale") {
+      EXPECT_EQ(t.to_vector(), scale);
+    }
+  }
+  EXPECT_NE(ldr(codes).to_vector(), a.to_vector());  // the rest did train
+}
+
+TEST(Networks, LdrStandardizationRefusesWhatItCannotUse) {
+  LdrSpec s;
+  s.input_normalization = "whiten";
+  EXPECT_NE(s.problem().find("ldr.input_normalization: expected \"none\" or \"standardize\", got "
+                             "\"whiten\""),
+            std::string::npos)
+      << s.problem();
+  s.input_normalization = "standardize";
+  Ldr ldr(s);
+  ldr.initialize(1);
+  auto message = [&](const Tensor& codes) {
+    try {
+      ldr.fit_input_standardization(codes);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("(no error)");
+  };
+  EXPECT_NE(message(ramp(Shape{4, 2, 8, 8}))
+                .find("codes are [4, 2, 8, 8], expected [n >= 1, 1, "
+                      "8, 8]"),
+            std::string::npos);
+  const std::vector<float> same(2 * 64, 0.5f);
+  EXPECT_NE(message(Tensor(Shape{2, 1, 8, 8}, same)).find("the 2 codes are all equal"),
+            std::string::npos);
+  std::vector<float> bad = ramp(Shape{2, 1, 8, 8}).to_vector();
+  bad[70] = NAN;
+  EXPECT_NE(message(Tensor(Shape{2, 1, 8, 8}, bad)).find("code 1 holds nan at element 6"),
+            std::string::npos)
+      << message(Tensor(Shape{2, 1, 8, 8}, bad));
+  LdrSpec none;
+  Ldr plain(none);
+  EXPECT_THROW(plain.fit_input_standardization(ramp(Shape{2, 1, 8, 8})), std::logic_error);
+  // the spec survives its JSON; a weight file written before the option has no map
+  EXPECT_EQ(LdrSpec::from_json(s.to_json()).to_json(), s.to_json());
+  nlohmann::json old = none.to_json();
+  old.erase("input_normalization");
+  EXPECT_EQ(LdrSpec::from_json(old).input_normalization, "none");
+}
+
+TEST(Networks, Ae2WithStandardizedCodesEncodesTheMappedCodeAndReconstructsIt) {
+  std::vector<float> v = ramp(Shape{6, 1, 8, 8}).to_vector();
+  for (std::size_t i = 0; i < v.size(); ++i)
+    v[i] = i % 64 == 5 ? 1.5f : v[i] * static_cast<float>(1 + i % 7);  // element 5: constant
+  const Tensor codes(Shape{6, 1, 8, 8}, v);
+  Ae2Spec s;
+  s.kind = "mlp";
+  s.widths = {16};
+  s.activation = "silu";
+  s.latent_dim = 3;
+  Ae2 plain(s);
+  s.input_normalization = "standardize";
+  Ae2 net(s);
+  plain.initialize(7);
+  net.initialize(7);  // the same names below the map: the same weights
+  EXPECT_THROW(plain.fit_input_standardization(codes), std::logic_error);
+  net.fit_input_standardization(codes);
+  const Tensor mapped = net.coordinates(codes);
+  const std::vector<float> shift = net.input_map()->shift().to_vector();
+  const std::vector<float> scale = net.input_map()->scale().to_vector();
+  EXPECT_EQ(scale[5], 0.0f);
+  for (std::size_t i = 0; i < v.size(); ++i)
+    EXPECT_NEAR(mapped.data()[i], (v[i] - shift[i % 64]) * scale[i % 64], 1e-6) << i;
+  EXPECT_EQ(net.encode(codes).to_vector(), plain.encode(mapped).to_vector());
+  EXPECT_EQ(plain.coordinates(codes).to_vector(), v);
+  EXPECT_EQ(net.trained_parameters().size() + 2, net.named_parameters().size());
+  EXPECT_EQ(plain.trained_parameters().size(), plain.named_parameters().size());
+  // the spec survives its JSON; a weight file written before the option has no map
+  EXPECT_EQ(Ae2Spec::from_json(s.to_json()).to_json(), s.to_json());
+  nlohmann::json old = s.to_json();
+  old.erase("input_normalization");
+  EXPECT_EQ(Ae2Spec::from_json(old).input_normalization, "none");
+  s.input_normalization = "pca";
+  EXPECT_NE(s.problem().find("ae2.input_normalization: expected \"none\" or \"standardize\", got "
+                             "\"pca\""),
+            std::string::npos)
+      << s.problem();
 }

@@ -31,16 +31,25 @@ struct Fixture {
 
 // a small AE2 (MLP, SiLU: smooth, so central differences converge) and one batch with two
 // sparsity terms, targets 0 and 2
-Fixture make(const std::string& normalization) {
+// With input_normalization "standardize" the map is fitted on the reconstruction codes,
+// whose elements are then given spreads from 0 (constant) to 2.
+Fixture make(const std::string& normalization, const std::string& input_normalization = "none") {
   Ae2Spec s;
   s.kind = "mlp";
   s.widths = {8};
   s.activation = "silu";
   s.latent_dim = 4;
+  s.input_normalization = input_normalization;
   Fixture f;
   f.net = std::make_unique<Ae2>(s);
   f.net->initialize(5);
   f.batch.reconstruction = normal(Shape{5, 1, 8, 8}, 1);
+  if (input_normalization == "standardize") {
+    float* y = f.batch.reconstruction.mutable_data();
+    for (std::int64_t i = 0; i < 5 * 64; ++i)
+      y[i] = (i % 64 == 0) ? 0.25f : y[i] * static_cast<float>(i % 64) / 32.0f;
+    f.net->fit_input_standardization(f.batch.reconstruction);
+  }
   for (int k = 0; k < 2; ++k) {
     f.batch.term_codes.push_back(normal(Shape{6, 1, 8, 8}, 10 + k));
     Tensor v = normal(Shape{6, 1, 8, 8}, 20 + k, 0.3f);
@@ -55,7 +64,7 @@ Fixture make(const std::string& normalization) {
 double reference_loss(Fixture& f, double lambda, SparsityNorm norm, SparsityDiagonal diagonal) {
   ropes::nn::GradModeGuard no_grad(true);
   const Tensor y = f.batch.reconstruction;
-  const Tensor err = ropes::nn::square(ropes::nn::sub((*f.net)(y), y));
+  const Tensor err = ropes::nn::square(ropes::nn::sub((*f.net)(y), f.net->coordinates(y)));
   double recon = 0;
   for (std::int64_t i = 0; i < err.numel(); ++i)
     recon += err.data()[i];
@@ -73,52 +82,71 @@ double reference_loss(Fixture& f, double lambda, SparsityNorm norm, SparsityDiag
   return loss;
 }
 
+// The gradient the training step uses (two phases over 2 micro-batches) against central
+// finite differences of the double-precision reference loss, every entry of the trained
+// parameters.
+void expect_gradient_matches(Fixture& f, SparsityNorm norm, SparsityDiagonal diagonal,
+                             const std::string& label) {
+  const double lambda = 0.7;
+  std::size_t parts = 0;
+  const ropes::nn::BatchLoss loss =
+      ae2_batch_loss(*f.net, f.batch, lambda, norm, 9, &parts, diagonal);
+  ASSERT_EQ(parts, 2u);
+  std::vector<Tensor> params;
+  for (const auto& named : f.net->trained_parameters())
+    params.push_back(named.second);
+  const ropes::nn::BatchGradient g = ropes::nn::batch_gradient(params, loss, parts);
+  EXPECT_NEAR(g.loss, reference_loss(f, lambda, norm, diagonal), 1e-5 * std::fabs(g.loss));
+  const double h = 1e-3;
+  double worst = 0;
+  std::size_t checked = 0;
+  for (std::size_t p = 0; p < params.size(); ++p) {
+    Tensor t = params[p];
+    for (std::int64_t i = 0; i < t.numel(); ++i) {
+      const float saved = t.data()[i];
+      t.mutable_data()[i] = saved + static_cast<float>(h);
+      const double up = reference_loss(f, lambda, norm, diagonal);
+      t.mutable_data()[i] = saved - static_cast<float>(h);
+      const double down = reference_loss(f, lambda, norm, diagonal);
+      t.mutable_data()[i] = saved;
+      const double numeric = (up - down) / (2 * h);
+      const double analytic = g.grads[p].data()[i];
+      const double err = std::fabs(analytic - numeric);
+      worst = std::max(worst, err);
+      EXPECT_LE(err, 2e-3 + 2e-2 * std::fabs(numeric))
+          << label << ": parameter " << p << " entry " << i << ": analytic " << analytic
+          << ", finite differences " << numeric;
+      ++checked;
+    }
+  }
+  std::printf("%s: %zu entries, max |analytic - numeric| %.2e\n", label.c_str(), checked, worst);
+}
+
 }  // namespace
 
-// The gradient the training step uses (two phases over 2 micro-batches) against central
-// finite differences of the double-precision reference loss, every parameter entry, for
-// both norms, both score normalisations and both forms of the diagonal.
+// both norms, both score normalisations and both forms of the diagonal
 TEST(SparsityObjective, GradientMatchesFiniteDifferences) {
   for (const SparsityNorm norm : {SparsityNorm::kL2Squared, SparsityNorm::kL1}) {
     for (const std::string normalization : {"none", "unit"}) {
       for (const SparsityDiagonal diagonal :
            {SparsityDiagonal::kMeanAbs, SparsityDiagonal::kAbsMean}) {
         Fixture f = make(normalization);
-        const double lambda = 0.7;
-        std::size_t parts = 0;
-        const ropes::nn::BatchLoss loss =
-            ae2_batch_loss(*f.net, f.batch, lambda, norm, 9, &parts, diagonal);
-        ASSERT_EQ(parts, 2u);
-        const std::vector<Tensor> params = f.net->parameters();
-        const ropes::nn::BatchGradient g = ropes::nn::batch_gradient(params, loss, parts);
-        EXPECT_NEAR(g.loss, reference_loss(f, lambda, norm, diagonal), 1e-5 * std::fabs(g.loss));
-        const double h = 1e-3;
-        double worst = 0;
-        std::size_t checked = 0;
-        for (std::size_t p = 0; p < params.size(); ++p) {
-          Tensor t = params[p];
-          for (std::int64_t i = 0; i < t.numel(); ++i) {
-            const float saved = t.data()[i];
-            t.mutable_data()[i] = saved + static_cast<float>(h);
-            const double up = reference_loss(f, lambda, norm, diagonal);
-            t.mutable_data()[i] = saved - static_cast<float>(h);
-            const double down = reference_loss(f, lambda, norm, diagonal);
-            t.mutable_data()[i] = saved;
-            const double numeric = (up - down) / (2 * h);
-            const double analytic = g.grads[p].data()[i];
-            const double err = std::fabs(analytic - numeric);
-            worst = std::max(worst, err);
-            EXPECT_LE(err, 2e-3 + 2e-2 * std::fabs(numeric))
-                << to_string(norm) << ", " << normalization << ", " << to_string(diagonal)
-                << ": parameter " << p << " entry " << i << ": analytic " << analytic
-                << ", finite differences " << numeric;
-            ++checked;
-          }
-        }
-        std::printf("%s, %s, %s: %zu entries, max |analytic - numeric| %.2e\n", to_string(norm),
-                    normalization.c_str(), to_string(diagonal), checked, worst);
+        expect_gradient_matches(
+            f, norm, diagonal,
+            std::string(to_string(norm)) + ", " + normalization + ", " + to_string(diagonal));
       }
     }
+  }
+}
+
+// an AE2 that reads standardised codes: the reconstruction is compared in its coordinates
+// and the fixed map gets no gradient (it is not among the trained parameters)
+TEST(SparsityObjective, GradientMatchesFiniteDifferencesWithStandardizedCodes) {
+  for (const SparsityNorm norm : {SparsityNorm::kL2Squared, SparsityNorm::kL1}) {
+    Fixture f = make("unit", "standardize");
+    EXPECT_EQ(f.net->trained_parameters().size() + 2, f.net->named_parameters().size());
+    expect_gradient_matches(f, norm, SparsityDiagonal::kAbsMean,
+                            std::string(to_string(norm)) + ", unit, abs_mean, standardize");
   }
 }
 
@@ -145,6 +173,13 @@ TEST(SparsityObjective, MicroBatchesGiveTheWholeBatchGradient) {
 TEST(SparsityObjective, UnitLengthRowsAndPenalty) {
   const Tensor v(Shape{2, 2}, {3.0f, 4.0f, 0.0f, 0.0f});
   EXPECT_EQ(unit_length_rows(v).to_vector(), (std::vector<float>{0.6f, 0.8f, 0.0f, 0.0f}));
+  // lengths 5, 0 and 10: mean 5, so every row is divided by 5 and keeps its size relative
+  // to the others
+  const Tensor w(Shape{3, 2}, {3.0f, 4.0f, 0.0f, 0.0f, -6.0f, 8.0f});
+  EXPECT_EQ(mean_unit_length_rows(w).to_vector(),
+            (std::vector<float>{0.6f, 0.8f, 0.0f, 0.0f, -1.2f, 1.6f}));
+  EXPECT_EQ(mean_unit_length_rows(Tensor(Shape{2, 2}, {0.0f, 0.0f, 0.0f, 0.0f})).to_vector(),
+            (std::vector<float>(4, 0.0f)));
   const Tensor m(Shape{3}, {0.5f, 0.25f, 1.0f});
   EXPECT_FLOAT_EQ(sparsity_penalty(m, 0, SparsityNorm::kL2Squared).item(), 0.25f + 0.0625f + 1.0f);
   EXPECT_FLOAT_EQ(sparsity_penalty(m, 2, SparsityNorm::kL1).item(), 0.75f);

@@ -2,8 +2,9 @@
 /// @file experiment_config.hpp
 /// An experiment: which dataset it expects, the three networks and how each stage trains.
 /// Read from a JSON file (the installed ones: share/ropes_crl/configs/*.json, one per paper
-/// setting x preset); every field is required, an unknown key is an error, and the error
-/// names the file, the field, the value and what was expected.
+/// setting x preset); every field is required but ldr.input_normalization,
+/// ae2.input_normalization and ae2.sparsity_diagonal (absent: the paper's choice), an unknown
+/// key is an error, and the error names the file, the field, the value and what was expected.
 #include "ropes_crl/networks.hpp"
 #include "ropes_crl/score_sparsity.hpp"
 
@@ -53,7 +54,9 @@ struct Ae2Training {
   double lambda = 1.0;
   SparsityNorm norm = SparsityNorm::kL2Squared;
   SparsityDiagonal diagonal = SparsityDiagonal::kMeanAbs;  ///< "sparsity_diagonal", optional
-  std::string score_normalization = "none";  ///< "none" or "unit" (|v| = 1 per sample)
+  /// "none", "unit" (|v| = 1 per sample) or "mean_unit" (each joint's v divided by one
+  /// number, their mean length: the mean |v| is 1 and the samples keep their relative sizes)
+  std::string score_normalization = "none";
   std::string score_samples = "intervened";  ///< "intervened" (joint i's samples) or "all"
   std::int64_t batch_size = 64;              ///< reconstruction samples a step (all regimes)
   std::int64_t sparsity_batch_size = 64;     ///< per joint, a step

@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace ropes::crl {
@@ -64,13 +65,45 @@ class Ae1 : public nn::Module {
   std::shared_ptr<nn::Sequential> encoder_, decoder_;
 };
 
+/// A fixed elementwise map of codes, y [N, C, 8, 8] -> (y - shift) * scale, for networks
+/// that read standardised codes (not in the paper). Parameters "shift" and "scale", [C, 8, 8],
+/// saved with the weights and never trained: fit() sets them from training codes.
+class CodeStandardization : public nn::Module {
+ public:
+  CodeStandardization(std::int64_t channels, std::int64_t side);
+  /// shift = the elementwise mean of `codes` [N, C, 8, 8]; scale = 1 / max(sd, 0.01 * max sd)
+  /// with sd the elementwise (population) standard deviation and max sd its largest value,
+  /// and 0 where sd <= 0.001 * max sd: an element that does not vary carries no
+  /// information, the network does not see it and gradients through the map are 0 there.
+  /// Throws std::invalid_argument naming `who` when `codes` has another shape, holds a
+  /// non-finite value, or does not vary at all.
+  void fit(const Tensor& codes, const std::string& who);
+  const Tensor& shift() const { return shift_; }
+  const Tensor& scale() const { return scale_; }
+  /// A gradient in y's coordinates moved to the map's: g / scale, 0 where scale is 0 (for
+  /// s = (y - shift) * scale, d/ds = d/dy / scale). g: [N, C, 8, 8].
+  Tensor to_mapped_gradient(const Tensor& g) const;
+
+ protected:
+  Tensor forward(const Tensor& y) override;
+
+ private:
+  Tensor shift_, scale_;
+};
+
 /// LDR, the log-density-ratio classifier: three valid Conv3x3 + ReLU (widths), flatten, Dense
 /// hidden + ReLU, Dense 1. The paper: widths 32/64/128, hidden 128, input 8x8xC.
+///
+/// input_normalization "standardize" (not in the paper) puts a CodeStandardization in front
+/// (parameters "input.shift", "input.scale"), set by fit_input_standardization. The logit is
+/// still a function of y, so its gradient, the score difference, is taken in y's coordinates
+/// through the map.
 struct LdrSpec {
   std::int64_t in_channels = 1;
   std::int64_t input_size = 8;
   std::vector<std::int64_t> widths = {32, 64, 128};
   std::int64_t hidden = 128;
+  std::string input_normalization = "none";  ///< "none" (the paper) or "standardize"
 
   std::string problem() const;
   nlohmann::json to_json() const;
@@ -82,12 +115,21 @@ class Ldr : public nn::Module {
   explicit Ldr(const LdrSpec& spec);
   const LdrSpec& spec() const { return spec_; }
 
+  /// With input_normalization "standardize": CodeStandardization::fit of the input map on
+  /// `codes` [N, C, 8, 8]; std::logic_error when the spec has no input map.
+  void fit_input_standardization(const Tensor& codes);
+  /// The input map (null without one).
+  const CodeStandardization* input_map() const { return input_.get(); }
+  /// The parameters an optimiser trains: every parameter but the input map's.
+  std::vector<std::pair<std::string, Tensor>> trained_parameters() const;
+
  protected:
   /// y [N, C, 8, 8] -> logit [N]
   Tensor forward(const Tensor& y) override;
 
  private:
   LdrSpec spec_;
+  std::shared_ptr<CodeStandardization> input_;  // with "standardize"
   std::shared_ptr<nn::Sequential> features_;
   std::shared_ptr<nn::Dense> hidden_, out_;
 };
@@ -109,6 +151,9 @@ struct Ae2Spec {
   std::vector<std::int64_t> decoder_widths = {512, 256, 128};  ///< conv only
   int blocks_per_stage = 2;                                    ///< conv only
   std::string activation = "relu";  ///< mlp only: "relu" or "silu" (x * sigmoid(x))
+  /// "none" (the paper) or "standardize": a CodeStandardization in front of the encoder; the
+  /// decoder then reconstructs the standardised code (see Ae2::coordinates).
+  std::string input_normalization = "none";
 
   std::string problem() const;
   nlohmann::json to_json() const;
@@ -121,8 +166,18 @@ class Ae2 : public nn::Module {
   const Ae2Spec& spec() const { return spec_; }
   /// y [N, C, 8, 8] -> z [N, d]
   Tensor encode(const Tensor& y);
-  /// z [N, d] -> y_hat [N, C, 8, 8]
+  /// z [N, d] -> the reconstruction [N, C, 8, 8], in AE2's coordinates: y itself, or with
+  /// input_normalization "standardize" the standardised code coordinates(y)
   Tensor decode(const Tensor& z);
+  /// y in AE2's coordinates (what decode reconstructs): y, or (y - shift) * scale.
+  Tensor coordinates(const Tensor& y);
+  /// With input_normalization "standardize": CodeStandardization::fit of the input map;
+  /// std::logic_error when the spec has no input map.
+  void fit_input_standardization(const Tensor& codes);
+  /// The input map (null without one).
+  const CodeStandardization* input_map() const { return input_.get(); }
+  /// The parameters an optimiser trains: every parameter but the input map's.
+  std::vector<std::pair<std::string, Tensor>> trained_parameters() const;
 
  protected:
   Tensor forward(const Tensor& y) override { return decode(encode(y)); }
@@ -130,6 +185,7 @@ class Ae2 : public nn::Module {
  private:
   Tensor activate(const Tensor& x) const;
   Ae2Spec spec_;
+  std::shared_ptr<CodeStandardization> input_;  // with "standardize"
   std::shared_ptr<nn::Sequential> encoder_, decoder_;
   std::vector<std::shared_ptr<nn::Dense>> mlp_encoder_, mlp_decoder_;
   std::shared_ptr<nn::Dense> to_latent_, from_latent_;

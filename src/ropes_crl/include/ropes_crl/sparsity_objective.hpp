@@ -8,6 +8,11 @@
 /// norm is squared L2 (the paper) or L1. The batch means sit inside the norm, so the loss is
 /// declared to ropes_nn's train_step as an outer function of batch means: a step over any
 /// number of micro-batches equals the whole-batch step.
+///
+/// With ae2.input_normalization "standardize" the objective is written in AE2's coordinates
+/// s = ae2.coordinates(y): the reconstruction error is || s - g(h(y)) ||^2 and v_k must be
+/// given in those coordinates too (CodeStandardization::to_mapped_gradient of the LDR's
+/// gradient); J_g^T v_k is then the same number as in y's coordinates, up to v's scaling.
 #include "ropes_crl/networks.hpp"
 #include "ropes_crl/score_sparsity.hpp"
 
@@ -24,6 +29,9 @@ Tensor latent_score_differences(Ae2& ae2, const Tensor& y, const Tensor& v, bool
 
 /// v with each sample scaled to unit L2 length (samples of length 0 stay 0). [n, ...].
 Tensor unit_length_rows(const Tensor& v);
+/// v divided by one number, the mean L2 length of its samples (all 0: v unchanged), so
+/// the mean length is 1 and the samples keep their relative sizes. [n, ...].
+Tensor mean_unit_length_rows(const Tensor& v);
 
 /// || mean_abs - e_target ||, squared L2 or L1. mean_abs: [d]; 0 <= target < d. With
 /// `signed_mean` ([d], the batch mean of J_g^T v without the absolute value) entry `target`
