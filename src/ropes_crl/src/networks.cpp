@@ -3,7 +3,6 @@
 #include <ropes_nn/ops.hpp>
 
 #include <algorithm>
-#include <cctype>
 #include <cmath>
 #include <stdexcept>
 
@@ -23,16 +22,13 @@ std::vector<std::pair<std::string, Tensor>> without_input_map(
   return out;
 }
 
-// fit_input_standardization of the network `net` ("ldr", "ae2") whose input map is `map`
-void fit_input_map(CodeStandardization* map, const std::string& net,
-                   const std::string& normalization, const Tensor& codes) {
-  std::string who = net;
-  who[0] = static_cast<char>(std::toupper(static_cast<unsigned char>(who[0])));
-  who += "::fit_input_standardization";
+// set_input_map of network `who` ("Ldr", "Ae2") whose input map is `map`
+void copy_input_map(CodeStandardization* map, const char* who, const char* field,
+                    const std::string& normalization, const CodeStandardization& fitted) {
   if (!map)
-    throw std::logic_error(who + ": " + net + ".input_normalization is \"" + normalization +
-                           "\", not \"standardize\"");
-  map->fit(codes, who);
+    throw std::logic_error(std::string(who) + "::set_input_map: " + field + " is \"" +
+                           normalization + "\", not \"standardize\"");
+  map->copy_from(fitted, std::string(who) + "::set_input_map");
 }
 
 using nn::Conv2d;
@@ -221,6 +217,16 @@ void CodeStandardization::fit(const Tensor& codes, const std::string& who) {
   mark_initialized("scale");
 }
 
+void CodeStandardization::copy_from(const CodeStandardization& fitted, const std::string& who) {
+  if (fitted.scale_.shape() != scale_.shape())
+    throw std::invalid_argument(who + ": the fitted map is " + fitted.scale_.shape().str() +
+                                ", expected " + scale_.shape().str());
+  std::copy_n(fitted.shift_.data(), shift_.numel(), shift_.mutable_data());
+  std::copy_n(fitted.scale_.data(), scale_.numel(), scale_.mutable_data());
+  mark_initialized("shift");
+  mark_initialized("scale");
+}
+
 Tensor CodeStandardization::to_mapped_gradient(const Tensor& g) const {
   const std::int64_t per = scale_.numel();
   const nn::Shape& want = scale_.shape();
@@ -301,8 +307,8 @@ Tensor Ldr::forward(const Tensor& y) {
   return nn::reshape(logit, nn::Shape{logit.shape()[0]});
 }
 
-void Ldr::fit_input_standardization(const Tensor& codes) {
-  fit_input_map(input_.get(), "ldr", spec_.input_normalization, codes);
+void Ldr::set_input_map(const CodeStandardization& fitted) {
+  copy_input_map(input_.get(), "Ldr", "ldr.input_normalization", spec_.input_normalization, fitted);
 }
 
 std::vector<std::pair<std::string, Tensor>> Ldr::trained_parameters() const {
@@ -428,8 +434,8 @@ Tensor Ae2::coordinates(const Tensor& y) {
   return input_ ? (*input_)(y) : y;
 }
 
-void Ae2::fit_input_standardization(const Tensor& codes) {
-  fit_input_map(input_.get(), "ae2", spec_.input_normalization, codes);
+void Ae2::set_input_map(const CodeStandardization& fitted) {
+  copy_input_map(input_.get(), "Ae2", "ae2.input_normalization", spec_.input_normalization, fitted);
 }
 
 std::vector<std::pair<std::string, Tensor>> Ae2::trained_parameters() const {

@@ -245,8 +245,9 @@ std::pair<double, double> ldr_evaluate(Ldr& net, const TrainingData& data,
 }
 
 LdrOutcome train_ldr(const ExperimentConfig& config, const TrainingData& data,
-                     const JointRegimes& joint, const TrainOptions& options,
-                     const MetricsLog& metrics, const fs::path& weights, bool bar) {
+                     const CodeStandardization* codes_map, const JointRegimes& joint,
+                     const TrainOptions& options, const MetricsLog& metrics,
+                     const fs::path& weights, bool bar) {
   const LdrTraining& t = config.ldr_training;
   Ldr net(config.ldr);
   net.initialize(derive_seed(options.seed, "ldr.init." + joint.name));
@@ -258,10 +259,8 @@ LdrOutcome train_ldr(const ExperimentConfig& config, const TrainingData& data,
                                 std::to_string(joint.rows.size()) +
                                 " interventional samples leaves one side empty; the dataset "
                                 "needs more anchors");
-  // the statistics of every code of the training anchors (all regimes), never of the
-  // held-out anchors that early stopping reads
   if (config.ldr.input_normalization == "standardize")
-    net.fit_input_standardization(data.training_anchor_codes());
+    net.set_input_map(*codes_map);
   nn::Adam adam(net.trained_parameters(), nn::AdamOptions{t.optimizer.lr});
   const std::int64_t batches =
       (static_cast<std::int64_t>(train_rows.size()) + t.batch_size - 1) / t.batch_size;
@@ -354,13 +353,13 @@ std::vector<Ae2Model> ae2_models(const ExperimentConfig& config) {
 }
 
 void train_ae2(const ExperimentConfig& config, const TrainingData& data, const ScoreTable& scores,
-               const Ae2Model& model, const fs::path& run_dir, const TrainOptions& options,
-               const MetricsLog& metrics) {
+               const CodeStandardization* codes_map, const Ae2Model& model, const fs::path& run_dir,
+               const TrainOptions& options, const MetricsLog& metrics) {
   const Ae2Training& t = config.ae2_training;
   Ae2 net(config.ae2);
   net.initialize(derive_seed(options.seed, "ae2.init." + model.name));
   if (config.ae2.input_normalization == "standardize")
-    net.fit_input_standardization(data.training_anchor_codes());
+    net.set_input_map(*codes_map);
   nn::Adam adam(net.trained_parameters(), nn::AdamOptions{t.optimizer.lr});
   nn::LrSchedule schedule = t.optimizer.make_schedule(t.steps);
   const fs::path weights = ae2_file(run_dir, model.name), checkpoint = checkpoint_of(weights);
@@ -487,6 +486,17 @@ void train(const ExperimentConfig& config_in, const fs::path& data_dir, const fs
     write_json_file(run_json, run);
   }
   data.load_codes(codes_file(run_dir));
+  // the map of standardised codes, for the networks that read them: fitted once on every
+  // code of the training anchors (all regimes), never on the held-out anchors that the LDRs'
+  // early stopping reads
+  std::unique_ptr<CodeStandardization> codes_map;
+  if (config.ldr.input_normalization == "standardize" ||
+      config.ae2.input_normalization == "standardize") {
+    codes_map =
+        std::make_unique<CodeStandardization>(config.ae2.in_channels, config.ae2.input_size);
+    codes_map->fit(data.training_anchor_codes(),
+                   "the standardised codes of " + codes_file(run_dir).string());
+  }
 
   // stage 2: one LDR per joint
   for (const JointRegimes& joint : data.joints) {
@@ -497,8 +507,8 @@ void train(const ExperimentConfig& config_in, const fs::path& data_dir, const fs
       return r.value("stage", "") != "ldr" || r.value("joint", "") != joint.name;
     });
     const Clock::time_point t0 = Clock::now();
-    const LdrOutcome o =
-        train_ldr(config, data, joint, options, metrics, weights, options.progress_bar);
+    const LdrOutcome o = train_ldr(config, data, codes_map.get(), joint, options, metrics, weights,
+                                   options.progress_bar);
     add_stage_time(run, "ldr", seconds_since(t0));
     run["ldr"][joint.name] = {{"held_out_loss", o.loss},
                               {"held_out_accuracy", o.accuracy},
@@ -508,20 +518,17 @@ void train(const ExperimentConfig& config_in, const fs::path& data_dir, const fs
   }
 
   // score differences v_k(y) = grad_y LDR_k(y), from the frozen classifiers, in AE2's
-  // coordinates (its input map is fitted on the same codes in train_ae2)
-  std::unique_ptr<CodeStandardization> ae2_map;
-  if (config.ae2.input_normalization == "standardize") {
-    ae2_map = std::make_unique<CodeStandardization>(config.ae2.in_channels, config.ae2.input_size);
-    ae2_map->fit(data.training_anchor_codes(), "ae2.input_normalization");
-  }
-  const ScoreTable scores = ScoreTable::compute(config, data, run_dir, ae2_map.get());
+  // coordinates
+  const ScoreTable scores = ScoreTable::compute(
+      config, data, run_dir,
+      config.ae2.input_normalization == "standardize" ? codes_map.get() : nullptr);
 
   // stage 3: AE2 (one a joint, or one for all) and the lambda = 0 baseline
   for (const Ae2Model& model : ae2_models(config)) {
     const fs::path weights = ae2_file(run_dir, model.name);
     if (!fs::exists(weights)) {
       const Clock::time_point t0 = Clock::now();
-      train_ae2(config, data, scores, model, run_dir, options, metrics);
+      train_ae2(config, data, scores, codes_map.get(), model, run_dir, options, metrics);
       add_stage_time(run, model.name == "lambda0" ? "ae2_lambda0" : "ae2", seconds_since(t0));
     }
     run["sparsity_matrix"][model.name] = sparsity_matrix(config, data, scores, weights);

@@ -1,5 +1,6 @@
 // Estimator::estimate_frame, the call streaming makes per frame: after warm-up it allocates
-// nothing (at one to four threads, one and two cameras, per-joint and joint AE2s), it gives
+// nothing (at one to four threads, one and two cameras, per-joint and joint AE2s, standardised
+// LDRs and AE2s), it gives
 // the same bits at every thread count, and it gives the latents the batch
 // evaluation gives — bit for bit for a batch of one, to float rounding inside a larger batch
 // (there the MLP's products are a GEMM instead of a GEMV). The run is the `small` preset's
@@ -12,6 +13,7 @@
 #include <ropes_nn/dataset.hpp>
 #include <ropes_nn/parallel.hpp>
 #include <ropes_nn/philox.hpp>
+#include <ropes_nn/safetensors.hpp>
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -111,6 +113,10 @@ ExperimentConfig few_steps(const std::string& name) {
       load_experiment_config(std::string(ROPES_CRL_SOURCE_CONFIGS) + "/" + file + ".json").raw;
   if (name.find("/joint") != std::string::npos)
     raw["ae2"]["mode"] = "joint";
+  if (name.find("/standardized") != std::string::npos) {
+    raw["ldr"]["input_normalization"] = "standardize";
+    raw["ae2"]["input_normalization"] = "standardize";
+  }
   raw["dataset"]["joints"] = {kJoints[0], kJoints[1]};
   raw["ae1"]["steps"] = 3;
   raw["ae1"]["optimizer"]["warmup"] = 0;
@@ -199,14 +205,48 @@ TEST_P(EstimatorFrame, AllocatesNothingAfterWarmUpAndMatchesTheBatchPath) {
   }
 }
 
+// With both standardisations every LDR and AE2 carries the one map the trainer fitted, and
+// it is not the untrained identity
+class StandardizedRun : public EstimatorFrame {};
+
+TEST_P(StandardizedRun, EveryNetworkCarriesTheOneFittedMap) {
+  std::vector<std::uint8_t> shift, scale;
+  int files = 0;
+  for (const auto& entry : fs::directory_iterator(dir_ / "run")) {
+    const std::string name = entry.path().filename().string();
+    if ((name.rfind("ldr.", 0) != 0 && name.rfind("ae2.", 0) != 0) ||
+        entry.path().extension() != ".safetensors")
+      continue;
+    const nn::Safetensors file = nn::read_safetensors(entry.path());
+    const nn::NpyArray* a = file.find("input.shift");
+    const nn::NpyArray* b = file.find("input.scale");
+    ASSERT_TRUE(a != nullptr && b != nullptr) << name;
+    if (files++ == 0) {
+      shift = a->data;
+      scale = b->data;
+    }
+    EXPECT_EQ(a->data, shift) << name;
+    EXPECT_EQ(b->data, scale) << name;
+  }
+  EXPECT_EQ(files, 2 + 3);  // two LDRs, two AE2s and the lambda = 0 one
+  std::vector<float> values(scale.size() / 4);
+  std::memcpy(values.data(), scale.data(), scale.size());
+  EXPECT_TRUE(std::any_of(values.begin(), values.end(), [](float v) { return v != 1.0f; }));
+}
+
 INSTANTIATE_TEST_SUITE_P(SmallPreset, EstimatorFrame,
-                         ::testing::Values("1c-small", "2c-small", "1c-small/joint"),
+                         ::testing::Values("1c-small", "2c-small", "1c-small/joint",
+                                           "1c-small/standardized"),
                          [](const auto& info) {
                            const std::string p = info.param;
                            if (p == "1c-small/joint")
                              return std::string("OneCameraJointMode");
+                           if (p == "1c-small/standardized")
+                             return std::string("OneCameraStandardized");
                            return std::string(p == "1c-small" ? "OneCamera" : "TwoCameras");
                          });
+INSTANTIATE_TEST_SUITE_P(SmallPreset, StandardizedRun, ::testing::Values("1c-small/standardized"),
+                         [](const auto&) { return std::string("OneCamera"); });
 
 }  // namespace
 }  // namespace ropes::crl

@@ -20,6 +20,15 @@ Tensor ramp(const Shape& s) {
     v[i] = static_cast<float>((i * 37) % 101) / 101.0f;
   return Tensor(s, v);
 }
+// an MLP AE2 with one hidden layer of 16, SiLU, `latent` latents
+Ae2Spec silu_mlp(std::int64_t latent) {
+  Ae2Spec s;
+  s.kind = "mlp";
+  s.widths = {16};
+  s.activation = "silu";
+  s.latent_dim = latent;
+  return s;
+}
 }  // namespace
 
 TEST(Networks, SmallAe1MapsImagesToEightByEightCodesAndBack) {
@@ -57,11 +66,7 @@ TEST(Networks, PaperSpecsBuildTheAppendixShapes) {
 }
 
 TEST(Networks, MlpAe2WithSiluIsTwiceDifferentiable) {
-  Ae2Spec s;
-  s.kind = "mlp";
-  s.widths = {16};
-  s.activation = "silu";
-  s.latent_dim = 4;
+  const Ae2Spec s = silu_mlp(4);
   Ae2 net(s);
   net.initialize(4);
   const Tensor z = net.encode(ramp(Shape{3, 1, 8, 8}));
@@ -107,7 +112,9 @@ TEST(Networks, LdrStandardizesItsInputWithTheStatisticsOfTheCodes) {
   s.input_normalization = "standardize";
   Ldr ldr(s);
   ldr.initialize(5);
-  ldr.fit_input_standardization(codes);
+  CodeStandardization fitted(1, 8);
+  fitted.fit(codes, "test");
+  ldr.set_input_map(fitted);
 
   // the witness: mean and population sd of each element in double, the rule of the header
   std::vector<double> mean(per, 0.0), sd(per, 0.0);
@@ -201,11 +208,10 @@ TEST(Networks, LdrStandardizationRefusesWhatItCannotUse) {
             std::string::npos)
       << s.problem();
   s.input_normalization = "standardize";
-  Ldr ldr(s);
-  ldr.initialize(1);
+  CodeStandardization map(1, 8);
   auto message = [&](const Tensor& codes) {
     try {
-      ldr.fit_input_standardization(codes);
+      map.fit(codes, "test");
     } catch (const std::invalid_argument& e) {
       return std::string(e.what());
     }
@@ -223,9 +229,29 @@ TEST(Networks, LdrStandardizationRefusesWhatItCannotUse) {
   EXPECT_NE(message(Tensor(Shape{2, 1, 8, 8}, bad)).find("code 1 holds nan at element 6"),
             std::string::npos)
       << message(Tensor(Shape{2, 1, 8, 8}, bad));
+  // a map for another code shape, a network without a map, a gradient of another shape
+  Ldr ldr(s);
+  CodeStandardization two(2, 8);
+  two.fit(ramp(Shape{3, 2, 8, 8}), "test");
+  try {
+    ldr.set_input_map(two);
+    ADD_FAILURE() << "took a [2, 8, 8] map for [1, 8, 8] codes";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find(
+                  "Ldr::set_input_map: the fitted map is [2, 8, 8], expected [1, 8, 8]"),
+              std::string::npos)
+        << e.what();
+  }
   LdrSpec none;
   Ldr plain(none);
-  EXPECT_THROW(plain.fit_input_standardization(ramp(Shape{2, 1, 8, 8})), std::logic_error);
+  try {
+    plain.set_input_map(two);
+    ADD_FAILURE() << "a network without a map took one";
+  } catch (const std::logic_error& e) {
+    EXPECT_NE(std::string(e.what()).find("ldr.input_normalization is \"none\""), std::string::npos)
+        << e.what();
+  }
+  EXPECT_THROW(two.to_mapped_gradient(ramp(Shape{3, 1, 8, 8})), std::invalid_argument);
   // the spec survives its JSON; a weight file written before the option has no map
   EXPECT_EQ(LdrSpec::from_json(s.to_json()).to_json(), s.to_json());
   nlohmann::json old = none.to_json();
@@ -238,18 +264,16 @@ TEST(Networks, Ae2WithStandardizedCodesEncodesTheMappedCodeAndReconstructsIt) {
   for (std::size_t i = 0; i < v.size(); ++i)
     v[i] = i % 64 == 5 ? 1.5f : v[i] * static_cast<float>(1 + i % 7);  // element 5: constant
   const Tensor codes(Shape{6, 1, 8, 8}, v);
-  Ae2Spec s;
-  s.kind = "mlp";
-  s.widths = {16};
-  s.activation = "silu";
-  s.latent_dim = 3;
+  Ae2Spec s = silu_mlp(3);
   Ae2 plain(s);
   s.input_normalization = "standardize";
   Ae2 net(s);
   plain.initialize(7);
   net.initialize(7);  // the same names below the map: the same weights
-  EXPECT_THROW(plain.fit_input_standardization(codes), std::logic_error);
-  net.fit_input_standardization(codes);
+  CodeStandardization fitted(1, 8);
+  fitted.fit(codes, "test");
+  EXPECT_THROW(plain.set_input_map(fitted), std::logic_error);
+  net.set_input_map(fitted);
   const Tensor mapped = net.coordinates(codes);
   const std::vector<float> shift = net.input_map()->shift().to_vector();
   const std::vector<float> scale = net.input_map()->scale().to_vector();

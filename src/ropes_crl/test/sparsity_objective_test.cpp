@@ -48,7 +48,9 @@ Fixture make(const std::string& normalization, const std::string& input_normaliz
     float* y = f.batch.reconstruction.mutable_data();
     for (std::int64_t i = 0; i < 5 * 64; ++i)
       y[i] = (i % 64 == 0) ? 0.25f : y[i] * static_cast<float>(i % 64) / 32.0f;
-    f.net->fit_input_standardization(f.batch.reconstruction);
+    CodeStandardization fitted(1, 8);
+    fitted.fit(f.batch.reconstruction, "test");
+    f.net->set_input_map(fitted);
   }
   for (int k = 0; k < 2; ++k) {
     f.batch.term_codes.push_back(normal(Shape{6, 1, 8, 8}, 10 + k));

@@ -78,6 +78,9 @@ class CodeStandardization : public nn::Module {
   /// Throws std::invalid_argument naming `who` when `codes` has another shape, holds a
   /// non-finite value, or does not vary at all.
   void fit(const Tensor& codes, const std::string& who);
+  /// Takes `fitted`'s shift and scale; std::invalid_argument naming `who` when its shape
+  /// differs.
+  void copy_from(const CodeStandardization& fitted, const std::string& who);
   const Tensor& shift() const { return shift_; }
   const Tensor& scale() const { return scale_; }
   /// A gradient in y's coordinates moved to the map's: g / scale, 0 where scale is 0 (for
@@ -95,7 +98,7 @@ class CodeStandardization : public nn::Module {
 /// hidden + ReLU, Dense 1. The paper: widths 32/64/128, hidden 128, input 8x8xC.
 ///
 /// input_normalization "standardize" (not in the paper) puts a CodeStandardization in front
-/// (parameters "input.shift", "input.scale"), set by fit_input_standardization. The logit is
+/// (parameters "input.shift", "input.scale"), set by set_input_map. The logit is
 /// still a function of y, so its gradient, the score difference, is taken in y's coordinates
 /// through the map.
 struct LdrSpec {
@@ -115,9 +118,10 @@ class Ldr : public nn::Module {
   explicit Ldr(const LdrSpec& spec);
   const LdrSpec& spec() const { return spec_; }
 
-  /// With input_normalization "standardize": CodeStandardization::fit of the input map on
-  /// `codes` [N, C, 8, 8]; std::logic_error when the spec has no input map.
-  void fit_input_standardization(const Tensor& codes);
+  /// With input_normalization "standardize": copies a fitted map's shift and scale into the
+  /// input map. std::logic_error when the spec has no input map, std::invalid_argument when
+  /// `fitted` has another shape.
+  void set_input_map(const CodeStandardization& fitted);
   /// The input map (null without one).
   const CodeStandardization* input_map() const { return input_.get(); }
   /// The parameters an optimiser trains: every parameter but the input map's.
@@ -171,9 +175,9 @@ class Ae2 : public nn::Module {
   Tensor decode(const Tensor& z);
   /// y in AE2's coordinates (what decode reconstructs): y, or (y - shift) * scale.
   Tensor coordinates(const Tensor& y);
-  /// With input_normalization "standardize": CodeStandardization::fit of the input map;
-  /// std::logic_error when the spec has no input map.
-  void fit_input_standardization(const Tensor& codes);
+  /// With input_normalization "standardize": copies a fitted map into the input map, as
+  /// Ldr::set_input_map.
+  void set_input_map(const CodeStandardization& fitted);
   /// The input map (null without one).
   const CodeStandardization* input_map() const { return input_.get(); }
   /// The parameters an optimiser trains: every parameter but the input map's.
