@@ -46,6 +46,7 @@ void MetricsLog::rewrite(const std::vector<std::string>& lines) const {
 }
 
 void MetricsLog::append(const nlohmann::json& record) const {
+  const std::lock_guard<std::mutex> lock(mutex_);
   std::FILE* f = std::fopen(path_.c_str(), "a");
   if (f == nullptr)
     throw nn::FileFormatError(path_.string() + ": cannot be opened for appending");
@@ -55,13 +56,45 @@ void MetricsLog::append(const nlohmann::json& record) const {
     throw nn::FileFormatError(path_.string() + ": a record could not be written (disk full?)");
 }
 
+void ProgressBoard::draw() {
+  std::string line = "\r" + title_;
+  for (const auto& [owner, part] : parts_)
+    line += " | " + part;
+  line += "\x1b[K";
+  std::fputs(line.c_str(), stderr);
+  std::fflush(stderr);
+}
+
+void ProgressBoard::show(const std::string& owner, const std::string& part) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  parts_[owner] = part;
+  draw();
+}
+
+void ProgressBoard::retire(const std::string& owner, const std::string& line) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  parts_.erase(owner);
+  std::fprintf(stderr, "\r\x1b[K%s", line.c_str());
+  if (!parts_.empty())
+    draw();
+  else
+    std::fflush(stderr);
+}
+
+void ProgressBoard::print(const std::string& line) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  std::fputs(line.c_str(), stderr);
+  std::fflush(stderr);
+}
+
 Progress::Progress(std::string stage, std::int64_t total, std::int64_t first, bool bar,
-                   std::int64_t log_every)
+                   std::int64_t log_every, ProgressBoard* board)
     : stage_(std::move(stage)),
       total_(total),
       first_(first),
       bar_(bar),
       log_every_(log_every),
+      board_(board),
       start_(std::chrono::steady_clock::now()) {}
 
 void Progress::update(std::int64_t step, double loss, const std::string& extra) {
@@ -72,6 +105,16 @@ void Progress::update(std::int64_t step, double loss, const std::string& extra) 
   const double done = static_cast<double>(step - first_);
   const double eta = done > 0 ? elapsed / done * static_cast<double>(total_ - step) : 0.0;
   char line[256];
+  if (bar_ && board_ != nullptr) {
+    // a short part of the shared line: the stage (less the line's title), step and ETA
+    const std::string& title = board_->title();
+    const std::string name =
+        stage_.rfind(title + " ", 0) == 0 ? stage_.substr(title.size() + 1) : stage_;
+    std::snprintf(line, sizeof line, "%s %lld/%lld ETA %.0fs", name.c_str(),
+                  static_cast<long long>(step), static_cast<long long>(total_), eta);
+    board_->show(stage_, line);
+    return;
+  }
   if (bar_) {
     const int width = 24;
     const int filled = static_cast<int>(width * step / std::max<std::int64_t>(total_, 1));
@@ -85,6 +128,10 @@ void Progress::update(std::int64_t step, double loss, const std::string& extra) 
                   stage_.c_str(), static_cast<long long>(step), static_cast<long long>(total_),
                   loss, eta, extra.c_str());
   }
+  if (board_ != nullptr) {
+    board_->print(line);
+    return;
+  }
   std::fputs(line, stderr);
   std::fflush(stderr);
 }
@@ -92,8 +139,17 @@ void Progress::update(std::int64_t step, double loss, const std::string& extra) 
 void Progress::finish(const std::string& summary) {
   const double elapsed =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-  std::fprintf(stderr, "%sropes-train: %s done in %.1f s: %s\n", bar_ ? "\r\x1b[K" : "",
-               stage_.c_str(), elapsed, summary.c_str());
+  char line[512];
+  std::snprintf(line, sizeof line, "ropes-train: %s done in %.1f s: %s\n", stage_.c_str(), elapsed,
+                summary.c_str());
+  if (board_ != nullptr) {
+    if (bar_)
+      board_->retire(stage_, line);
+    else
+      board_->print(line);
+    return;
+  }
+  std::fprintf(stderr, "%s%s", bar_ ? "\r\x1b[K" : "", line);
   std::fflush(stderr);
 }
 

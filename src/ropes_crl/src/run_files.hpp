@@ -9,6 +9,8 @@
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
+#include <map>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -45,7 +47,8 @@ nlohmann::json read_json_file(const fs::path& path);
 void write_json_file(const fs::path& path, const nlohmann::json& j);
 
 /// metrics.jsonl: appends one line per record and flushes it; truncate() drops the records
-/// a resumed stage will write again (and a torn last line of a killed run).
+/// a resumed stage will write again (and a torn last line of a killed run). Safe to call from
+/// several threads (the AE2s that train at once): each call holds the log's lock.
 class MetricsLog {
  public:
   explicit MetricsLog(fs::path path) : path_(std::move(path)) {}
@@ -58,10 +61,12 @@ class MetricsLog {
   void rewrite(const std::vector<std::string>& lines) const;
   std::vector<std::string> lines() const;
   fs::path path_;
+  mutable std::mutex mutex_;
 };
 
 template <class Keep>
 void MetricsLog::truncate(Keep keep) const {
+  const std::lock_guard<std::mutex> lock(mutex_);
   std::vector<std::string> kept;
   for (const std::string& line : lines()) {
     const nlohmann::json j = nlohmann::json::parse(line, nullptr, false);
@@ -71,11 +76,35 @@ void MetricsLog::truncate(Keep keep) const {
   rewrite(kept);
 }
 
+/// The one terminal line that several stages running at once share (the AE2s trained side
+/// by side): each Progress on the board owns a part of the line, and every update redraws
+/// the whole line under the board's lock.
+class ProgressBoard {
+ public:
+  explicit ProgressBoard(std::string title) : title_(std::move(title)) {}
+  /// Sets (or replaces) `owner`'s part and redraws the line.
+  void show(const std::string& owner, const std::string& part);
+  /// Removes `owner`'s part, prints `line` (a finished stage's summary) on a line of its own
+  /// and redraws what is left.
+  void retire(const std::string& owner, const std::string& line);
+  /// Serialises a plain log line with the board's other output.
+  void print(const std::string& line);
+  /// What the line starts with ("ae2"); a part leaves it out of its stage's name.
+  const std::string& title() const { return title_; }
+
+ private:
+  void draw();
+  std::string title_;
+  std::map<std::string, std::string> parts_;
+  std::mutex mutex_;
+};
+
 /// Progress of one stage: a bar rewritten in place on a terminal, plain lines otherwise.
+/// With a board, the bar is a short part of the board's shared line instead.
 class Progress {
  public:
   Progress(std::string stage, std::int64_t total, std::int64_t first, bool bar,
-           std::int64_t log_every);
+           std::int64_t log_every, ProgressBoard* board = nullptr);
   /// After step `step` (1-based) with the current loss.
   void update(std::int64_t step, double loss, const std::string& extra = "");
   void finish(const std::string& summary);
@@ -85,6 +114,7 @@ class Progress {
   std::int64_t total_, first_;
   bool bar_;
   std::int64_t log_every_;
+  ProgressBoard* board_;
   std::chrono::steady_clock::time_point start_;
 };
 

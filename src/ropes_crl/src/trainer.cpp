@@ -9,14 +9,19 @@
 #include <ropes_nn/train_step.hpp>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <exception>
+#include <functional>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <set>
 #include <stdexcept>
+#include <thread>
 
 #include "ropes_crl/bayes_accuracy.hpp"
 #include "ropes_crl/sparsity_objective.hpp"
@@ -352,9 +357,13 @@ std::vector<Ae2Model> ae2_models(const ExperimentConfig& config) {
   return models;
 }
 
-void train_ae2(const ExperimentConfig& config, const TrainingData& data, const ScoreTable& scores,
+// Trains (or resumes) one AE2. Returns false, with a checkpoint of the current step written,
+// when `stop` was raised before the last step (another model of the stage failed); true when
+// the weights are saved.
+bool train_ae2(const ExperimentConfig& config, const TrainingData& data, const ScoreTable& scores,
                const CodeStandardization* codes_map, const Ae2Model& model, const fs::path& run_dir,
-               const TrainOptions& options, const MetricsLog& metrics) {
+               const TrainOptions& options, const MetricsLog& metrics, ProgressBoard* board,
+               const std::atomic<bool>& stop) {
   const Ae2Training& t = config.ae2_training;
   Ae2 net(config.ae2);
   net.initialize(derive_seed(options.seed, "ae2.init." + model.name));
@@ -379,11 +388,18 @@ void train_ae2(const ExperimentConfig& config, const TrainingData& data, const S
     term_samplers.emplace_back(
         static_cast<std::int64_t>(scores.rows[k].size()), t.sparsity_batch_size,
         derive_seed(options.seed, "ae2.scores." + model.name + "." + config.joints[k]));
-  Progress progress(stage, t.steps, first, options.progress_bar, config.log_every);
+  Progress progress(stage, t.steps, first, options.progress_bar, config.log_every, board);
   Clock::time_point window = Clock::now();
   std::int64_t window_samples = 0;
   while (adam.steps() < t.steps) {
     const std::int64_t s = adam.steps();
+    if (stop.load()) {
+      // the batches are a function of the step alone: any step is a valid resume point
+      if (s > first)
+        nn::save_checkpoint(checkpoint, net, adam, schedule, {options.seed, 0, s},
+                            network_metadata("ae2", config.ae2.to_json(), config));
+      return false;
+    }
     Ae2Batch batch;
     batch.reconstruction = data.codes_of(recon.rows(s));
     for (std::size_t i = 0; i < model.terms.size(); ++i) {
@@ -435,6 +451,87 @@ void train_ae2(const ExperimentConfig& config, const TrainingData& data, const S
                                    {{"model", model.name}, {"lambda", model.lambda}}));
   fs::remove(checkpoint);
   progress.finish(std::to_string(t.steps) + " steps");
+  return true;
+}
+
+// How stage 3 uses the threads: an AE2 step is too small to share between threads (a
+// 2-thread step takes as long as a 1-thread one, the second thread waiting), so up to
+// `threads` AE2s train at once, each on threads / workers threads. A function of the thread
+// count and the number of models of the config alone, never of what is left to train, so a
+// resumed stage computes with the same thread count as an uninterrupted one.
+struct Ae2Plan {
+  int workers = 1, threads_each = 1;
+};
+
+Ae2Plan ae2_plan(int threads, std::size_t models) {
+  Ae2Plan p;
+  p.workers = static_cast<int>(
+      std::max<std::size_t>(1, std::min(static_cast<std::size_t>(std::max(threads, 1)), models)));
+  p.threads_each = std::max(1, threads / p.workers);
+  return p;
+}
+
+// sets the kernels' thread count for a scope and restores it
+class ThreadCountScope {
+ public:
+  explicit ThreadCountScope(int n) : saved_(nn::num_threads()) { nn::set_num_threads(n); }
+  ~ThreadCountScope() { nn::set_num_threads(saved_); }
+  ThreadCountScope(const ThreadCountScope&) = delete;
+  ThreadCountScope& operator=(const ThreadCountScope&) = delete;
+
+ private:
+  int saved_;
+};
+
+// Trains the models of `todo` on plan.workers threads, each model on plan.threads_each
+// kernel threads; `finished(model, seconds)` is called (under a lock) as each one finishes.
+// The first failure stops the others at their next step, each with a checkpoint of the step
+// it reached, and is rethrown once every worker has stopped.
+void train_ae2_models(const ExperimentConfig& config, const TrainingData& data,
+                      const ScoreTable& scores, const CodeStandardization* codes_map,
+                      const std::vector<const Ae2Model*>& todo, const Ae2Plan& plan,
+                      const fs::path& run_dir, const TrainOptions& options,
+                      const MetricsLog& metrics,
+                      const std::function<void(const Ae2Model&, double)>& finished) {
+  const ThreadCountScope kernels(plan.threads_each);
+  const int workers = std::min<int>(plan.workers, static_cast<int>(todo.size()));
+  ProgressBoard board("ae2");
+  ProgressBoard* shared = workers > 1 ? &board : nullptr;
+  std::atomic<std::size_t> next{0};
+  std::atomic<bool> stop{false};
+  std::mutex lock;
+  std::exception_ptr failure;
+  auto work = [&] {
+    while (!stop.load()) {
+      const std::size_t i = next.fetch_add(1);
+      if (i >= todo.size())
+        return;
+      try {
+        const Clock::time_point t0 = Clock::now();
+        if (train_ae2(config, data, scores, codes_map, *todo[i], run_dir, options, metrics, shared,
+                      stop)) {
+          const std::lock_guard<std::mutex> guard(lock);
+          finished(*todo[i], seconds_since(t0));
+        }
+      } catch (...) {
+        const std::lock_guard<std::mutex> guard(lock);
+        if (!failure)
+          failure = std::current_exception();
+        stop.store(true);
+      }
+    }
+  };
+  if (workers <= 1) {
+    work();
+  } else {
+    std::vector<std::thread> pool;
+    for (int w = 0; w < workers; ++w)
+      pool.emplace_back(work);
+    for (std::thread& t : pool)
+      t.join();
+  }
+  if (failure)
+    std::rethrow_exception(failure);
 }
 
 // row k of model m's sparsity matrix: E|J_g^T v_k| over joint k's score rows
@@ -523,17 +620,30 @@ void train(const ExperimentConfig& config_in, const fs::path& data_dir, const fs
       config, data, run_dir,
       config.ae2.input_normalization == "standardize" ? codes_map.get() : nullptr);
 
-  // stage 3: AE2 (one a joint, or one for all) and the lambda = 0 baseline
-  for (const Ae2Model& model : ae2_models(config)) {
-    const fs::path weights = ae2_file(run_dir, model.name);
-    if (!fs::exists(weights)) {
-      const Clock::time_point t0 = Clock::now();
-      train_ae2(config, data, scores, codes_map.get(), model, run_dir, options, metrics);
-      add_stage_time(run, model.name == "lambda0" ? "ae2_lambda0" : "ae2", seconds_since(t0));
-    }
-    run["sparsity_matrix"][model.name] = sparsity_matrix(config, data, scores, weights);
-    write_json_file(run_json, run);
+  // stage 3: AE2 (one a joint, or one for all) and the lambda = 0 baseline, several at once
+  // (see ae2_plan)
+  const std::vector<Ae2Model> models = ae2_models(config);
+  const Ae2Plan plan = ae2_plan(options.threads, models.size());
+  std::vector<const Ae2Model*> todo;
+  for (const Ae2Model& model : models)
+    if (!fs::exists(ae2_file(run_dir, model.name)))
+      todo.push_back(&model);
+  if (!todo.empty()) {
+    const Clock::time_point t0 = Clock::now();
+    nlohmann::json& stage = run["stages"]["ae2"];
+    stage["models_at_once"] = plan.workers;
+    stage["threads_each"] = plan.threads_each;
+    train_ae2_models(config, data, scores, codes_map.get(), todo, plan, run_dir, options, metrics,
+                     [&](const Ae2Model& model, double seconds) {
+                       stage["models"][model.name]["wall_s"] = seconds;
+                       write_json_file(run_json, run);
+                     });
+    add_stage_time(run, "ae2", seconds_since(t0));
   }
+  for (const Ae2Model& model : models)
+    run["sparsity_matrix"][model.name] =
+        sparsity_matrix(config, data, scores, ae2_file(run_dir, model.name));
+  write_json_file(run_json, run);
   run["complete"] = true;
   write_json_file(run_json, run);
 }

@@ -255,13 +255,19 @@ TEST_F(Pipeline, BadInputIsRefusedClearly) {
       << o.text;
   EXPECT_FALSE(fs::exists(dir_ / "misspelt"));
 
-  // a loss that is not finite: the stage and step are named, the checkpoint is kept
+  // a loss that is not finite: the stage and step are named, the checkpoint is kept. At
+  // --threads 2 the AE2s of joints 2 and 4 train side by side and both diverge; the first to
+  // fail is reported, and the run stops without training the next models
   const fs::path nan = dir_ / "nan";
   o = train(nan.string(), "--set ae2.optimizer.lr=1e30");
   EXPECT_EQ(o.rc, 1);
-  EXPECT_NE(o.text.find("stage ae2 panda_joint2, step"), std::string::npos) << o.text;
+  EXPECT_TRUE(o.text.find("stage ae2 panda_joint2, step") != std::string::npos ||
+              o.text.find("stage ae2 panda_joint4, step") != std::string::npos)
+      << o.text;
   EXPECT_NE(o.text.find("the loss is nan"), std::string::npos) << o.text;
   EXPECT_TRUE(fs::exists(nan / "ae1.safetensors"));
+  EXPECT_FALSE(fs::exists(nan / "ae2.panda_joint6.safetensors"));
+  EXPECT_FALSE(fs::exists(nan / "ae2.panda_joint6.checkpoint.safetensors"));
 
   // a checkpoint whose tensors do not match the architecture
   const fs::path other = dir_ / "other";

@@ -18,6 +18,13 @@
 /// A run killed at any point resumes when started again with the same arguments: finished
 /// stages are kept, AE1 and AE2 continue from their last checkpoint (same seed and thread
 /// count: the same bytes as a run never killed), an LDR restarts its joint (seconds).
+///
+/// Threads: AE1, the encoding, the LDRs and the score differences compute on all
+/// `threads`. Stage 3 trains min(threads, M) of its M AE2s at once, each on
+/// threads / min(threads, M) threads (an AE2 step is too small to share: at 2 threads it
+/// takes as long as at 1); the split depends on the thread count and the config alone, so a
+/// resumed stage computes exactly as an uninterrupted one. When one AE2 fails, the others
+/// stop at their next step with a checkpoint of it.
 #include "ropes_crl/experiment_config.hpp"
 
 #include <cstdint>
@@ -34,7 +41,7 @@ struct TrainOptions {
   /// log_every steps.
   bool progress_bar = false;
   /// Test hook: called after each checkpoint is written with (stage, step); unset in normal
-  /// use.
+  /// use. In stage 3 it is called from the thread of each AE2, possibly at the same time.
   std::function<void(const std::string&, std::int64_t)> on_checkpoint;
 };
 
