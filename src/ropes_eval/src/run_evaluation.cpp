@@ -16,6 +16,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "ropes_eval/calibration.hpp"
 #include "ropes_eval/correlation.hpp"
 
 namespace ropes::eval {
@@ -47,43 +48,51 @@ Eigen::MatrixXd to_matrix(const Tensor& t) {
   return m;
 }
 
-// least squares of y on [x, 1]: the affine fit, and its MSE on (x_test, y_test)
-struct Affine {
-  double scale = 0, offset = 0;
-};
-Affine fit_affine(const Eigen::VectorXd& x, const Eigen::VectorXd& y) {
-  const double mx = x.mean(), my = y.mean();
-  const double sxx = (x.array() - mx).square().sum();
-  Affine a;
-  a.scale = sxx > 0 ? ((x.array() - mx) * (y.array() - my)).sum() / sxx : 0.0;
-  a.offset = my - a.scale * mx;
-  return a;
-}
-double affine_mse(const Affine& a, const Eigen::VectorXd& x, const Eigen::VectorXd& y) {
-  return ((a.scale * x.array() + a.offset) - y.array()).square().mean();
+// the paper's calibration of joint k from latent k; a constant latent (no fit) predicts the
+// calibration mean of the joint
+AffineCalibration calibrate(const Eigen::VectorXd& x, const Eigen::VectorXd& y) {
+  if (x.minCoeff() == x.maxCoeff())
+    return AffineCalibration{0.0, y.mean()};
+  return fit_affine(x, y);
 }
 
-// per-joint |Pearson| on the test rows and calibrated MSE (fit on calibration rows)
+// per joint on the test rows: |Pearson| of latent k and joint k (the paper's MCC), |Spearman|,
+// the best-assignment MCC over the method's latents, and the MSE of the calibrations fitted
+// on the calibration rows (joint k from latent k, and from every latent)
 MethodScores score_method(const std::string& name, const Eigen::MatrixXd& latents,
                           const Eigen::MatrixXd& angles, const std::vector<Eigen::Index>& cal,
                           const std::vector<Eigen::Index>& test, nlohmann::json* fit = nullptr) {
-  MethodScores s{name, {}, {}};
+  MethodScores s;
+  s.method = name;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
   const Eigen::MatrixXd lt = latents(test, Eigen::all), at = angles(test, Eigen::all);
   const Eigen::MatrixXd lc = latents(cal, Eigen::all), ac = angles(cal, Eigen::all);
   for (Eigen::Index k = 0; k < angles.cols(); ++k) {
-    double r = std::numeric_limits<double>::quiet_NaN();
+    double r = nan, rho = nan;
     try {
       r = std::fabs(pearson(lt.col(k), at.col(k)));
+      rho = std::fabs(spearman(lt.col(k), at.col(k)));
     } catch (const std::invalid_argument&) {
       // a constant latent: no correlation (reported as NaN, "-" in the table)
     }
-    const Affine a = fit_affine(lc.col(k), ac.col(k));
+    const AffineCalibration a = calibrate(lc.col(k), ac.col(k));
     s.mcc.push_back(r);
-    s.mse.push_back(affine_mse(a, lt.col(k), at.col(k)));
+    s.spearman.push_back(rho);
+    s.mse.push_back(calibration_mse(a, lt.col(k), at.col(k)));
+    s.mse_all_latents.push_back(calibration_mse(fit_linear(lc, ac.col(k)), lt, at.col(k)));
     if (fit != nullptr) {
       (*fit)["scale"].push_back(a.scale);
       (*fit)["offset"].push_back(a.offset);
     }
+  }
+  try {
+    const Assignment best = best_assignment_correlation(lt, at);
+    s.best_assignment_mcc.assign(best.correlation.data(),
+                                 best.correlation.data() + best.correlation.size());
+    s.best_assignment.assign(best.latent_of_joint.begin(), best.latent_of_joint.end());
+  } catch (const std::invalid_argument&) {
+    // a constant latent: the matching is undefined (NaN, "-")
+    s.best_assignment_mcc.assign(static_cast<std::size_t>(angles.cols()), nan);
   }
   return s;
 }
@@ -308,7 +317,12 @@ nlohmann::json RunEvaluation::to_json() const {
   };
   nlohmann::json by_method = nlohmann::json::object();
   for (const MethodScores& m : methods)
-    by_method[m.method] = {{"mcc", nums(m.mcc)}, {"mse", nums(m.mse)}};
+    by_method[m.method] = {{"mcc", nums(m.mcc)},
+                           {"mse", nums(m.mse)},
+                           {"spearman", nums(m.spearman)},
+                           {"best_assignment_mcc", nums(m.best_assignment_mcc)},
+                           {"best_assignment", m.best_assignment},
+                           {"mse_all_latents", nums(m.mse_all_latents)}};
   return {{"format", "ropes-eval-results"},
           {"format_version", 1},
           {"run", run_dir},
@@ -330,7 +344,11 @@ nlohmann::json RunEvaluation::to_json() const {
           {"calibration", calibration},
           {"notes",
            "mcc: |Pearson| of latent k and joint k on the test samples; mse: rad^2 of the affine "
-           "fit of joint k from latent k, fitted on the calibration samples, on the test samples"}};
+           "fit of joint k from latent k, fitted on the calibration samples, on the test samples; "
+           "spearman: |Spearman| of latent k and joint k; best_assignment_mcc: |Pearson| of joint "
+           "k and the latent best_assignment[k] that a maximum-weight matching of joints to "
+           "distinct latents on the |Pearson| matrix gives it; mse_all_latents: rad^2 of the "
+           "affine fit of joint k from every latent of the method"}};
 }
 
 std::string RunEvaluation::table() const {
@@ -338,17 +356,23 @@ std::string RunEvaluation::table() const {
   out << "ropes-eval: " << config_name << ", " << test_samples << " test and "
       << calibration_samples << " calibration samples (observational, dataset "
       << dataset_id.substr(0, 12) << ")\n";
-  out << "| joint | MCC | MSE rad^2 | paper MCC | paper MSE |";
+  out << "| joint | MCC | MSE rad^2 | paper MCC | paper MSE | best-assignment MCC / Spearman | "
+         "MSE from all latents |";
   for (std::size_t m = 1; m < methods.size(); ++m)
     out << " " << methods[m].method << " MCC |";
   out << " probe MSE linear / MLP | angle var | LDR acc / Bayes |\n";
-  out << "| --- | --- | --- | --- | --- |";
+  out << "| --- | --- | --- | --- | --- | --- | --- |";
   for (std::size_t m = 1; m < methods.size(); ++m)
     out << " --- |";
   out << " --- | --- | --- |\n";
   for (std::size_t k = 0; k < joints.size(); ++k) {
-    out << "| " << joints[k] << " | " << fmt(methods[0].mcc[k]) << " | " << fmt(methods[0].mse[k])
-        << " | " << fmt(paper_mcc[k]) << " | " << fmt(paper_mse[k]) << " |";
+    const MethodScores& r = methods[0];
+    out << "| " << joints[k] << " | " << fmt(r.mcc[k]) << " | " << fmt(r.mse[k]) << " | "
+        << fmt(paper_mcc[k]) << " | " << fmt(paper_mse[k]) << " | " << fmt(r.best_assignment_mcc[k])
+        << (k < r.best_assignment.size() && r.best_assignment[k] != static_cast<std::int64_t>(k)
+                ? " (latent " + std::to_string(r.best_assignment[k]) + ")"
+                : std::string())
+        << " / " << fmt(r.spearman[k]) << " | " << fmt(r.mse_all_latents[k]) << " |";
     for (std::size_t m = 1; m < methods.size(); ++m)
       out << " " << fmt(methods[m].mcc[k]) << " |";
     out << " " << fmt(probe_linear_mse[k], 4) << " / "

@@ -9,6 +9,8 @@
 
 #include <Eigen/Core>
 
+#include <vector>
+
 namespace ropes::eval {
 
 /// Which correlation a per-joint score uses.
@@ -37,5 +39,34 @@ Eigen::VectorXd average_ranks(const Eigen::Ref<const Eigen::VectorXd>& x);
 Eigen::VectorXd per_joint_correlation(const Eigen::Ref<const Eigen::MatrixXd>& latents,
                                       const Eigen::Ref<const Eigen::MatrixXd>& angles,
                                       Correlation kind = Correlation::kPearson);
+
+/// The |correlation| of every joint with every latent: entry (j, l) = |corr(angles column
+/// j, latents column l)|, a [k, d] matrix. `latents` [n, d], `angles` [n, k], n >= 2 rows
+/// each. Throws std::invalid_argument on a row-count mismatch or when a column is constant
+/// or not finite (naming the joint or the latent column).
+Eigen::MatrixXd correlation_matrix(const Eigen::Ref<const Eigen::MatrixXd>& latents,
+                                   const Eigen::Ref<const Eigen::MatrixXd>& angles,
+                                   Correlation kind = Correlation::kPearson);
+
+/// A matching of joints to distinct latents.
+struct Assignment {
+  std::vector<Eigen::Index> latent_of_joint;  ///< joint j is matched to latent latent_of_joint[j]
+  Eigen::VectorXd correlation;                ///< the matched entries, one a joint
+  double mean = 0;                            ///< their mean: the best-assignment MCC
+};
+
+/// The assignment of rows (joints) to distinct columns (latents) with the largest sum of
+/// `weights` ([k, d], k <= d; the |correlation| matrix): the Hungarian algorithm
+/// (shortest augmenting paths with potentials), O(k^2 d), exact. Among assignments of equal
+/// sum, the one returned depends on the matrix alone. Throws std::invalid_argument for
+/// k > d, an empty matrix or a value that is not finite.
+Assignment best_assignment(const Eigen::Ref<const Eigen::MatrixXd>& weights);
+
+/// The best-assignment MCC of the CRL literature: best_assignment(correlation_matrix(...)).
+/// It does not use the paper's pairing of latent i with joint i; the paper's measure is
+/// per_joint_correlation().
+Assignment best_assignment_correlation(const Eigen::Ref<const Eigen::MatrixXd>& latents,
+                                       const Eigen::Ref<const Eigen::MatrixXd>& angles,
+                                       Correlation kind = Correlation::kPearson);
 
 }  // namespace ropes::eval

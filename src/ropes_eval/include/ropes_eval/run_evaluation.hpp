@@ -5,6 +5,8 @@
 ///   - MCC: |Pearson| of latent k and joint k on the test half (the paper's measure),
 ///   - MSE (rad^2) of the affine calibration of joint k from latent k, fitted on the
 ///     calibration half and measured on the test half,
+///   - beside them |Spearman|, the best-assignment MCC (joints matched to distinct latents)
+///     and the MSE of the affine calibration from every latent of the method,
 /// beside the baselines (the lambda = 0 AE2's latent k; LDR_k(y), the classifier's logit)
 /// and the diagnostics (supervised probes from Y to each joint — a linear one and a small MLP,
 /// fitted on the calibration half — and the LDR's held-out accuracy against Bayes). Labels
@@ -27,10 +29,17 @@ struct RunEvaluationOptions {
   std::filesystem::path paper_results;
 };
 
-/// One method's numbers per joint.
+/// One method's numbers per joint (NaN where a latent is constant on the test samples).
 struct MethodScores {
   std::string method;
-  std::vector<double> mcc, mse;
+  std::vector<double> mcc;       ///< |Pearson| of latent k and joint k (the paper's MCC)
+  std::vector<double> mse;       ///< rad^2, the affine fit of joint k from latent k
+  std::vector<double> spearman;  ///< |Spearman| of latent k and joint k
+  /// |Pearson| of joint k and latent best_assignment[k], the maximum-weight matching of
+  /// joints to distinct latents (the best-assignment MCC of the CRL literature)
+  std::vector<double> best_assignment_mcc;
+  std::vector<std::int64_t> best_assignment;
+  std::vector<double> mse_all_latents;  ///< rad^2, the affine fit of joint k from every latent
 };
 
 struct RunEvaluation {
