@@ -7,8 +7,12 @@
 #include <stdexcept>
 #include <string>
 
+#include "expect_message.hpp"
+
 namespace ropes::eval {
 namespace {
+
+using test_support::expect_message;
 
 // Data and expected values from test/witness_calibration.py (numpy 1.24: polyfit of degree
 // 1 and linalg.lstsq on [X, 1]). The joint depends on latents 0 and 1 and, a little,
@@ -93,15 +97,6 @@ TEST(Calibration, RecoversAnExactAffineMapAndLeavesItsInputsAlone) {
   EXPECT_NEAR(fit.weights(1), -2.5, 1e-12);
   EXPECT_NEAR(calibration_mse(fit, z, y), 0.0, 1e-20);
   EXPECT_TRUE((z.array() == before.array()).all());
-}
-
-void expect_message(const std::function<void()>& call, const std::string& needle) {
-  try {
-    call();
-    ADD_FAILURE() << "no exception; expected one containing '" << needle << "'";
-  } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
-  }
 }
 
 TEST(Calibration, RejectsConstantAndMalformedInputNamingIt) {

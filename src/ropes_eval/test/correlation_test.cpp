@@ -10,8 +10,12 @@
 #include <string>
 #include <vector>
 
+#include "expect_message.hpp"
+
 namespace ropes::eval {
 namespace {
+
+using test_support::expect_message;
 
 // Data and expected values from test/witness_correlation.py (scipy.stats 1.10:
 // pearsonr, spearmanr, rankdata). y has ties, so Spearman exercises average ranks.
@@ -130,15 +134,6 @@ TEST(Correlation, PerJointTakesAbsoluteValuesColumnByColumn) {
   const Eigen::VectorXd spearman_mcc =
       per_joint_correlation(latents, angles, Correlation::kSpearman);
   EXPECT_NEAR(spearman_mcc(1), 0.87849682093234871, 1e-14);
-}
-
-void expect_message(const std::function<void()>& call, const std::string& needle) {
-  try {
-    call();
-    ADD_FAILURE() << "no exception; expected one containing '" << needle << "'";
-  } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
-  }
 }
 
 TEST(Correlation, RejectsBadInputNamingTheProblem) {
