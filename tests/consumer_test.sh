@@ -21,6 +21,15 @@ cmake -S "$here/consumer" -B "$work/ok" -DCMAKE_BUILD_TYPE=Release > "$work/ok.l
 cmake --build "$work/ok" > "$work/ok-build.log" 2>&1 || { cat "$work/ok-build.log"; exit 1; }
 "$work/ok/ropes_consumer"
 
+echo "== consumer: the metrics link no renderer (neither ropes_sim nor OSMesa)"
+link="$work/ok/CMakeFiles/ropes_consumer.dir/link.txt"
+[ -f "$link" ] || { echo "FAIL: no link line at $link" >&2; exit 1; }
+if grep -qiE 'ropes_sim|osmesa' "$link"; then
+  cat "$link"
+  echo "FAIL: the consumer of ropes_eval links the renderer" >&2
+  exit 1
+fi
+
 echo "== consumer: find_package(ropes_nn 1.0) must fail with CMake's version message"
 if cmake -S "$here/consumer" -B "$work/bad" -DROPES_NN_VERSION=1.0 > "$work/bad.log" 2>&1; then
   cat "$work/bad.log"
