@@ -3,6 +3,7 @@
 #include <ropes_crl/estimator.hpp>
 #include <ropes_nn/adam.hpp>
 #include <ropes_nn/dataset.hpp>
+#include <ropes_nn/demand.hpp>
 #include <ropes_nn/layers.hpp>
 #include <ropes_nn/ops.hpp>
 #include <ropes_nn/train_step.hpp>
@@ -97,6 +98,35 @@ MethodScores score_method(const std::string& name, const Eigen::MatrixXd& latent
   return s;
 }
 
+// mean and standard deviation (n - 1) over the repeats of each per-joint number; a NaN in
+// any repeat makes that joint's summary NaN
+void summarize(MethodSummary& m) {
+  const std::size_t reps = m.repeats.size();
+  auto over = [&](std::vector<double> MethodScores::*field, std::vector<double>& mean,
+                  std::vector<double>& sd) {
+    const std::size_t k = (m.repeats[0].*field).size();
+    mean.assign(k, 0.0);
+    sd.assign(k, 0.0);
+    for (std::size_t j = 0; j < k; ++j) {
+      double sum = 0;
+      for (const MethodScores& r : m.repeats)
+        sum += (r.*field)[j];
+      const double mu = sum / static_cast<double>(reps);
+      double ss = 0;
+      for (const MethodScores& r : m.repeats)
+        ss += ((r.*field)[j] - mu) * ((r.*field)[j] - mu);
+      mean[j] = mu;
+      sd[j] = reps > 1 ? std::sqrt(ss / static_cast<double>(reps - 1)) : 0.0;
+    }
+  };
+  m.mean.method = m.std.method = m.method;
+  over(&MethodScores::mcc, m.mean.mcc, m.std.mcc);
+  over(&MethodScores::mse, m.mean.mse, m.std.mse);
+  over(&MethodScores::spearman, m.mean.spearman, m.std.spearman);
+  over(&MethodScores::best_assignment_mcc, m.mean.best_assignment_mcc, m.std.best_assignment_mcc);
+  over(&MethodScores::mse_all_latents, m.mean.mse_all_latents, m.std.mse_all_latents);
+}
+
 // 1 / sd of each column, and 0 for a column that barely varies on the calibration samples
 // (sd <= 1e-3 of the largest): dividing one by its tiny sd would turn the differences the
 // test samples show there into huge values, and it carries no information the fit can use
@@ -168,6 +198,37 @@ std::string fmt(double v, int digits = 3) {
 
 }  // namespace
 
+std::vector<ProtocolSplit> protocol_splits(std::int64_t n, std::int64_t repeats,
+                                           std::int64_t calibration, std::int64_t test,
+                                           std::uint64_t seed) {
+  if (repeats < 1 || calibration < 2 || test < 2 || calibration + test > n)
+    throw std::invalid_argument(
+        "protocol_splits: " + std::to_string(repeats) + " repeats of " +
+        std::to_string(calibration) + " calibration and " + std::to_string(test) +
+        " test samples from " + std::to_string(n) +
+        " observational samples; expected at least 1 repeat, at least 2 samples in each set "
+        "and calibration + test <= the samples there are");
+  std::vector<ProtocolSplit> splits(static_cast<std::size_t>(repeats));
+  for (std::int64_t r = 0; r < repeats; ++r) {
+    const std::vector<std::int64_t> order =
+        nn::shuffled_indices(n, seed, static_cast<std::uint64_t>(r));
+    ProtocolSplit& s = splits[static_cast<std::size_t>(r)];
+    for (std::int64_t i = 0; i < calibration + test; ++i)
+      (i < calibration ? s.calibration : s.test)
+          .push_back(static_cast<Eigen::Index>(order[static_cast<std::size_t>(i)]));
+    // disjoint: every index at most once across the two sets
+    std::vector<char> seen(static_cast<std::size_t>(n), 0);
+    for (const std::vector<Eigen::Index>* set : {&s.calibration, &s.test})
+      for (Eigen::Index i : *set) {
+        ROPES_DEMAND(i >= 0 && i < n && !seen[static_cast<std::size_t>(i)],
+                     "protocol_splits: sample " + std::to_string(i) + " drawn twice in repeat " +
+                         std::to_string(r));
+        seen[static_cast<std::size_t>(i)] = 1;
+      }
+  }
+  return splits;
+}
+
 fs::path installed_paper_results() {
   return fs::path(ROPES_EVAL_SHARE_DIR) / "paper_results.json";
 }
@@ -223,9 +284,21 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
     if (g == observational)
       rows.push_back(r);
   }
-  if (rows.size() < 10)
-    throw std::invalid_argument(manifest.string() + ": " + std::to_string(rows.size()) +
-                                " observational samples; expected at least 10");
+  // the protocol's sizes, checked before the images are encoded
+  const std::int64_t wanted = options.calibration_samples + options.test_samples;
+  if (options.repeats < 1 || options.calibration_samples < 2 || options.test_samples < 2)
+    throw std::invalid_argument("the protocol asks for " + std::to_string(options.repeats) +
+                                " repeats of " + std::to_string(options.calibration_samples) +
+                                " calibration and " + std::to_string(options.test_samples) +
+                                " test samples; expected at least 1 repeat and 2 samples a set");
+  if (static_cast<std::int64_t>(rows.size()) < wanted)
+    throw std::invalid_argument(
+        manifest.string() + ": " + std::to_string(rows.size()) +
+        " observational samples; the protocol draws " +
+        std::to_string(options.calibration_samples) + " calibration and " +
+        std::to_string(options.test_samples) + " disjoint test samples a repeat (" +
+        std::to_string(wanted) +
+        "): generate more anchors, or ask for fewer (--calibration-samples, --test-samples)");
 
   // latents of every observational sample, in chunks
   const std::int64_t n = static_cast<std::int64_t>(rows.size()),
@@ -264,25 +337,47 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
       angles(i, k) = a;
     }
 
-  // calibration and test halves, by seed
-  const std::vector<std::int64_t> order = nn::shuffled_indices(n, options.seed, 0);
-  const std::int64_t nc = std::max<std::int64_t>(
-      2,
-      std::min<std::int64_t>(n - 2, static_cast<std::int64_t>(options.calibration_fraction * n)));
-  std::vector<Eigen::Index> cal, test;
-  for (std::int64_t i = 0; i < n; ++i)
-    (i < nc ? cal : test).push_back(static_cast<Eigen::Index>(order[static_cast<std::size_t>(i)]));
-  ev.calibration_samples = nc;
-  ev.test_samples = n - nc;
-
-  nlohmann::json fit = {{"joints", config.joints},
-                        {"scale", nlohmann::json::array()},
-                        {"offset", nlohmann::json::array()}};
-  ev.methods.push_back(score_method("ropes", z, angles, cal, test, &fit));
-  ev.calibration = fit;
+  // the protocol: repeats of a calibration set and a disjoint test set, drawn by seed
+  const std::vector<ProtocolSplit> splits = protocol_splits(
+      n, options.repeats, options.calibration_samples, options.test_samples, options.seed);
+  ev.calibration_samples = options.calibration_samples;
+  ev.test_samples = options.test_samples;
+  ev.observational_samples = n;
+  ev.seed = options.seed;
+  std::vector<std::pair<std::string, const Eigen::MatrixXd*>> sources = {{"ropes", &z}};
   if (estimator.has_lambda0())
-    ev.methods.push_back(score_method("lambda0_autoencoder", z0, angles, cal, test));
-  ev.methods.push_back(score_method("ldr_logit", logit, angles, cal, test));
+    sources.push_back({"lambda0_autoencoder", &z0});
+  sources.push_back({"ldr_logit", &logit});
+  for (const auto& [name, latents] : sources) {
+    MethodSummary m;
+    m.method = name;
+    for (std::size_t r = 0; r < splits.size(); ++r) {
+      nlohmann::json fit = {{"joints", config.joints},
+                            {"scale", nlohmann::json::array()},
+                            {"offset", nlohmann::json::array()}};
+      m.repeats.push_back(
+          score_method(name, *latents, angles, splits[r].calibration, splits[r].test, &fit));
+      if (name == "ropes" && r == 0)
+        ev.calibration = fit;
+    }
+    summarize(m);
+    ev.methods.push_back(std::move(m));
+  }
+  // the repeat the scatter plots show, as the paper's do: ROPES' highest mean MCC
+  double best = -1;
+  for (std::size_t r = 0; r < splits.size(); ++r) {
+    const std::vector<double>& mcc = ev.methods[0].repeats[r].mcc;
+    double sum = 0;
+    for (double v : mcc)
+      sum += std::isfinite(v) ? v : 0.0;
+    if (sum > best) {
+      best = sum;
+      ev.best_repeat = static_cast<std::int64_t>(r);
+    }
+  }
+  // the diagnostics, on repeat 0's samples (the MLP probe trains for seconds a repeat)
+  const std::vector<Eigen::Index>& cal = splits[0].calibration;
+  const std::vector<Eigen::Index>& test = splits[0].test;
   ev.probe_linear_mse = detail::linear_probe(y, angles, cal, test);
   if (options.probe_steps > 0)
     ev.probe_mlp_mse = mlp_probe(y, angles, cal, test, options.probe_steps, options.seed);
@@ -315,16 +410,29 @@ nlohmann::json RunEvaluation::to_json() const {
       a.push_back(std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr));
     return a;
   };
+  auto scores = [&](const MethodScores& m) {
+    return nlohmann::json{{"mcc", nums(m.mcc)},
+                          {"mse", nums(m.mse)},
+                          {"spearman", nums(m.spearman)},
+                          {"best_assignment_mcc", nums(m.best_assignment_mcc)},
+                          {"mse_all_latents", nums(m.mse_all_latents)}};
+  };
   nlohmann::json by_method = nlohmann::json::object();
-  for (const MethodScores& m : methods)
-    by_method[m.method] = {{"mcc", nums(m.mcc)},
-                           {"mse", nums(m.mse)},
-                           {"spearman", nums(m.spearman)},
-                           {"best_assignment_mcc", nums(m.best_assignment_mcc)},
-                           {"best_assignment", m.best_assignment},
-                           {"mse_all_latents", nums(m.mse_all_latents)}};
+  for (const MethodSummary& m : methods) {
+    nlohmann::json j = scores(m.mean);
+    const nlohmann::json sd = scores(m.std);
+    for (auto it = sd.begin(); it != sd.end(); ++it)
+      j[it.key() + "_std"] = it.value();
+    j["repeats"] = nlohmann::json::array();
+    for (const MethodScores& r : m.repeats) {
+      nlohmann::json one = scores(r);
+      one["best_assignment"] = r.best_assignment;
+      j["repeats"].push_back(one);
+    }
+    by_method[m.method] = j;
+  }
   return {{"format", "ropes-eval-results"},
-          {"format_version", 1},
+          {"format_version", 2},
           {"run", run_dir},
           {"data", data_dir},
           {"config", config_name},
@@ -332,7 +440,13 @@ nlohmann::json RunEvaluation::to_json() const {
           {"dataset", dataset_id},
           {"train_dataset", train_dataset_id},
           {"joints", joints},
-          {"samples", {{"calibration", calibration_samples}, {"test", test_samples}}},
+          {"protocol",
+           {{"repeats", methods.empty() ? 0 : methods[0].repeats.size()},
+            {"calibration_samples", calibration_samples},
+            {"test_samples", test_samples},
+            {"observational_samples", observational_samples},
+            {"seed", seed},
+            {"best_repeat", best_repeat}}},
           {"methods", by_method},
           {"diagnostics",
            {{"probe_linear_mse", nums(probe_linear_mse)},
@@ -343,8 +457,11 @@ nlohmann::json RunEvaluation::to_json() const {
           {"paper", {{"mcc", nums(paper_mcc)}, {"mse", nums(paper_mse)}}},
           {"calibration", calibration},
           {"notes",
-           "mcc: |Pearson| of latent k and joint k on the test samples; mse: rad^2 of the affine "
-           "fit of joint k from latent k, fitted on the calibration samples, on the test samples; "
+           "each repeat draws calibration_samples and disjoint test_samples from the "
+           "observational samples; a method's numbers are the mean over the repeats (*_std: the "
+           "standard deviation, n - 1; repeats: each one). mcc: |Pearson| of latent k and joint k "
+           "on the test samples; mse: rad^2 of the affine fit of joint k from latent k, fitted on "
+           "the calibration samples, on the test samples; diagnostics: repeat 0's samples; "
            "spearman: |Spearman| of latent k and joint k; best_assignment_mcc: |Pearson| of joint "
            "k and the latent best_assignment[k] that a maximum-weight matching of joints to "
            "distinct latents on the |Pearson| matrix gives it; mse_all_latents: rad^2 of the "
@@ -352,10 +469,12 @@ nlohmann::json RunEvaluation::to_json() const {
 }
 
 std::string RunEvaluation::table() const {
+  const std::size_t reps = methods.empty() ? 0 : methods[0].repeats.size();
+  auto pm = [](double mean, double sd) { return fmt(mean) + " ± " + fmt(sd); };
   std::ostringstream out;
-  out << "ropes-eval: " << config_name << ", " << test_samples << " test and "
-      << calibration_samples << " calibration samples (observational, dataset "
-      << dataset_id.substr(0, 12) << ")\n";
+  out << "ropes-eval: " << config_name << ", " << reps << " repeats of " << calibration_samples
+      << " calibration and " << test_samples << " test samples (of " << observational_samples
+      << " observational, dataset " << dataset_id.substr(0, 12) << "); mean ± std\n";
   out << "| joint | MCC | MSE rad^2 | paper MCC | paper MSE | best-assignment MCC / Spearman | "
          "MSE from all latents |";
   for (std::size_t m = 1; m < methods.size(); ++m)
@@ -366,15 +485,23 @@ std::string RunEvaluation::table() const {
     out << " --- |";
   out << " --- | --- | --- |\n";
   for (std::size_t k = 0; k < joints.size(); ++k) {
-    const MethodScores& r = methods[0];
-    out << "| " << joints[k] << " | " << fmt(r.mcc[k]) << " | " << fmt(r.mse[k]) << " | "
-        << fmt(paper_mcc[k]) << " | " << fmt(paper_mse[k]) << " | " << fmt(r.best_assignment_mcc[k])
-        << (k < r.best_assignment.size() && r.best_assignment[k] != static_cast<std::int64_t>(k)
-                ? " (latent " + std::to_string(r.best_assignment[k]) + ")"
+    const MethodSummary& r = methods[0];
+    // repeats whose best assignment gives joint k another latent than latent k
+    std::size_t other = 0;
+    for (const MethodScores& one : r.repeats)
+      other +=
+          k < one.best_assignment.size() && one.best_assignment[k] != static_cast<std::int64_t>(k)
+              ? 1
+              : 0;
+    out << "| " << joints[k] << " | " << pm(r.mean.mcc[k], r.std.mcc[k]) << " | "
+        << pm(r.mean.mse[k], r.std.mse[k]) << " | " << fmt(paper_mcc[k]) << " | "
+        << fmt(paper_mse[k]) << " | " << fmt(r.mean.best_assignment_mcc[k])
+        << (other > 0
+                ? " (another latent in " + std::to_string(other) + "/" + std::to_string(reps) + ")"
                 : std::string())
-        << " / " << fmt(r.spearman[k]) << " | " << fmt(r.mse_all_latents[k]) << " |";
+        << " / " << fmt(r.mean.spearman[k]) << " | " << fmt(r.mean.mse_all_latents[k]) << " |";
     for (std::size_t m = 1; m < methods.size(); ++m)
-      out << " " << fmt(methods[m].mcc[k]) << " |";
+      out << " " << pm(methods[m].mean.mcc[k], methods[m].std.mcc[k]) << " |";
     out << " " << fmt(probe_linear_mse[k], 4) << " / "
         << (probe_mlp_mse.empty() ? "-" : fmt(probe_mlp_mse[k], 4)) << " | "
         << fmt(angle_variance[k]) << " | " << fmt(ldr_accuracy[k]) << " / "

@@ -67,8 +67,8 @@ std::vector<nlohmann::json> metrics_of(const fs::path& run) {
 // see TinyRunIsDeterministicPinnedAndLearnsTheSparsityPattern
 constexpr double kGoldenAe1Loss = 0.113068044;
 constexpr double kGoldenAe2Loss = 0.0360004492;
-constexpr double kGoldenMcc2 =
-    0.0408572835;  // |Pearson| of latent 0 and joint 2: a pin of the latents
+// |Pearson| of latent 0 and joint 2, the mean of 3 protocol repeats: a pin of the latents
+constexpr double kGoldenMcc2 = 0.135800377;
 
 const std::string kGenerate = ROPES_GENERATE_EXE, kTrain = ROPES_TRAIN_EXE, kEval = ROPES_EVAL_EXE;
 
@@ -124,12 +124,23 @@ TEST_F(Pipeline, TinyRunIsDeterministicPinnedAndLearnsTheSparsityPattern) {
   for (const char* f : kWeights)
     EXPECT_EQ(bytes_of(a / f), bytes_of(b / f)) << f << " differs between two identical runs";
 
+  // the tiny test set has 40 observational samples: 3 repeats of 20 + 20
   const Output e = run(kEval + " --run " + a.string() + " --data " + (dir_ / "data1").string() +
-                       " --probe-steps 100");
+                       " --probe-steps 100 --repeats 3 --calibration-samples 20 --test-samples 20");
   ASSERT_EQ(e.rc, 0) << e.text;
   EXPECT_NE(e.text.find("| panda_joint6 |"), std::string::npos) << e.text;
+  EXPECT_NE(e.text.find("3 repeats of 20 calibration and 20 test samples (of 40 observational"),
+            std::string::npos)
+      << e.text;
   const nlohmann::json results = json_of(a / "results.json");
   EXPECT_EQ(results["methods"]["ropes"]["mcc"].size(), 3u);
+  EXPECT_EQ(results["methods"]["ropes"]["repeats"].size(), 3u);
+  EXPECT_EQ(results["protocol"]["repeats"], 3);
+  // the reported MCC is the mean of the repeats'
+  double sum = 0;
+  for (const nlohmann::json& r : results["methods"]["ropes"]["repeats"])
+    sum += r["mcc"][0].get<double>();
+  EXPECT_NEAR(results["methods"]["ropes"]["mcc"][0].get<double>(), sum / 3, 1e-12);
   EXPECT_TRUE(fs::exists(a / "calibration.json"));
 
   // golden values
@@ -283,6 +294,14 @@ TEST_F(Pipeline, BadInputIsRefusedClearly) {
   o = train(other.string());
   EXPECT_EQ(o.rc, 1);
   EXPECT_NE(o.text.find("ae2.panda_joint2.checkpoint.safetensors"), std::string::npos) << o.text;
+
+  // a test set too small for the protocol's default 1,000 + 500 samples
+  o = run(kEval + " --run " + good.string() + " --data " + (dir_ / "data1").string());
+  EXPECT_EQ(o.rc, 1);
+  EXPECT_NE(o.text.find("40 observational samples; the protocol draws 1000 calibration and 500 "
+                        "disjoint test samples a repeat"),
+            std::string::npos)
+      << o.text;
 
   // evaluating on the training set, and an unfinished run
   o = run(kEval + " --run " + good.string() + " --data " + (dir_ / "data0").string());

@@ -17,16 +17,21 @@ namespace fs = std::filesystem;
 const char* const kUsage = R"(usage: ropes-eval --run RUN --data DIR [options]
 
 Evaluates the trained run in RUN on the observational samples of the dataset in DIR (one
-the run did not train on: generate it with another --seed). Prints per joint the MCC
-(|Pearson| of latent k and joint k) and the MSE in rad^2 of the affine calibration of joint
-k from latent k, beside the paper's numbers, the lambda = 0 autoencoder, the LDR logit and
-supervised probes from AE1's code. Writes RUN/results.json (or --out) and
-RUN/calibration.json (the affine fit, for the Estimator).
+the run did not train on: generate it with another --seed), by the paper's protocol: each
+of R repeats draws C labelled calibration samples and N disjoint test samples. Prints per
+joint the mean and standard deviation over the repeats of the MCC (|Pearson| of latent k
+and joint k) and of the MSE in rad^2 of the affine calibration of joint k from latent k,
+beside the paper's numbers, the best-assignment MCC, Spearman, the calibration from every
+latent, the lambda = 0 autoencoder, the LDR logit and supervised probes from AE1's code.
+Writes RUN/results.json (or --out) and RUN/calibration.json (repeat 0's affine fit, for the
+Estimator).
 
 options:
   --out FILE                results file (default RUN/results.json)
-  --calibration-fraction F  share of the samples the calibration is fitted on (default 0.5)
-  --seed S                  the split's and the probe's seed (default 0)
+  --repeats R               draws of a calibration and a test set (default 15)
+  --calibration-samples C   labelled samples a repeat fits on (default 1000)
+  --test-samples N          samples a repeat scores on, disjoint from those (default 500)
+  --seed S                  the draws' and the probe's seed (default 0)
   --probe-steps N           MLP probe training steps (default 3000; 0: none)
   --threads T               compute threads (default 1)
 )";
@@ -68,8 +73,12 @@ int run(int argc, char** argv) {
       data = value;
     else if (flag == "--out")
       out = value;
-    else if (flag == "--calibration-fraction")
-      options.calibration_fraction = parse_number<double>(flag, value);
+    else if (flag == "--repeats")
+      options.repeats = parse_number<std::int64_t>(flag, value);
+    else if (flag == "--calibration-samples")
+      options.calibration_samples = parse_number<std::int64_t>(flag, value);
+    else if (flag == "--test-samples")
+      options.test_samples = parse_number<std::int64_t>(flag, value);
     else if (flag == "--seed")
       options.seed = parse_number<std::uint64_t>(flag, value);
     else if (flag == "--probe-steps")
@@ -81,8 +90,12 @@ int run(int argc, char** argv) {
   }
   if (run_dir.empty() || data.empty())
     throw UsageError("--run and --data are required (see --help)");
-  if (!(options.calibration_fraction > 0 && options.calibration_fraction < 1))
-    throw UsageError("--calibration-fraction must be in (0, 1)");
+  if (options.repeats < 1 || options.repeats > 10000)
+    throw UsageError("--repeats is " + std::to_string(options.repeats) + "; expected 1..10000");
+  if (options.calibration_samples < 2 || options.test_samples < 2)
+    throw UsageError("--calibration-samples and --test-samples must be at least 2 (they are " +
+                     std::to_string(options.calibration_samples) + " and " +
+                     std::to_string(options.test_samples) + ")");
   if (threads < 1 || threads > 256)
     throw UsageError("--threads is " + std::to_string(threads) + "; expected 1..256");
   ropes::nn::set_num_threads(threads);

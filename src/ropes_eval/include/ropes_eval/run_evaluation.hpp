@@ -1,16 +1,19 @@
 #pragma once
 /// @file run_evaluation.hpp
-/// The first evaluation of a trained run (what `ropes-eval --run RUN --data DIR` prints):
-/// on the observational samples of a dataset the run did not train on, per joint
-///   - MCC: |Pearson| of latent k and joint k on the test half (the paper's measure),
+/// The evaluation of a trained run (what `ropes-eval --run RUN --data DIR` prints), by the
+/// paper's protocol: on the observational samples of a dataset the run did not train on,
+/// `repeats` times (15) a seeded draw of `calibration_samples` (1,000) labelled samples and a
+/// disjoint set of `test_samples` (500); per joint, the mean and standard deviation over the
+/// repeats of
+///   - MCC: |Pearson| of latent k and joint k on the test samples (the paper's measure),
 ///   - MSE (rad^2) of the affine calibration of joint k from latent k, fitted on the
-///     calibration half and measured on the test half,
+///     calibration samples and measured on the test samples,
 ///   - beside them |Spearman|, the best-assignment MCC (joints matched to distinct latents)
 ///     and the MSE of the affine calibration from every latent of the method,
-/// beside the baselines (the lambda = 0 AE2's latent k; LDR_k(y), the classifier's logit)
-/// and the diagnostics (supervised probes from Y to each joint — a linear one and a small MLP,
-/// fitted on the calibration half — and the LDR's held-out accuracy against Bayes). Labels
-/// (the angles) are read here only.
+/// for ROPES and the baselines (the lambda = 0 AE2's latent k; LDR_k(y), the classifier's
+/// logit), and the diagnostics of repeat 0 (supervised probes from Y to each joint — a linear
+/// one and a small MLP, fitted on its calibration samples — and the LDR's held-out accuracy
+/// against Bayes). Labels (the angles) are read here only.
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
@@ -22,14 +25,17 @@
 namespace ropes::eval {
 
 struct RunEvaluationOptions {
-  double calibration_fraction = 0.5;  ///< of the observational samples, drawn by seed
-  std::uint64_t seed = 0;
-  std::int64_t probe_steps = 3000;  ///< MLP probe training steps (0: no MLP probe)
+  std::int64_t repeats = 15;                ///< draws of a calibration set and a test set
+  std::int64_t calibration_samples = 1000;  ///< labelled samples each repeat fits on
+  std::int64_t test_samples = 500;          ///< disjoint from them, each repeat scores on
+  std::uint64_t seed = 0;                   ///< the draws' and the MLP probe's
+  std::int64_t probe_steps = 3000;          ///< MLP probe training steps (0: no MLP probe)
   /// paper_results.json (the paper's table); empty: the installed one.
   std::filesystem::path paper_results;
 };
 
-/// One method's numbers per joint (NaN where a latent is constant on the test samples).
+/// One method's numbers per joint for one repeat (NaN where a latent is constant on the
+/// test samples).
 struct MethodScores {
   std::string method;
   std::vector<double> mcc;       ///< |Pearson| of latent k and joint k (the paper's MCC)
@@ -42,15 +48,25 @@ struct MethodScores {
   std::vector<double> mse_all_latents;  ///< rad^2, the affine fit of joint k from every latent
 };
 
+/// One method over the repeats: each repeat's scores, their mean and standard deviation
+/// (with n - 1) per joint.
+struct MethodSummary {
+  std::string method;
+  std::vector<MethodScores> repeats;
+  MethodScores mean, std;
+};
+
 struct RunEvaluation {
   std::string run_dir, data_dir, config_name, setting, dataset_id, train_dataset_id;
   std::vector<std::string> joints;
-  std::int64_t calibration_samples = 0, test_samples = 0;
-  std::vector<MethodScores> methods;  ///< "ropes" first, then the baselines
+  std::int64_t calibration_samples = 0, test_samples = 0, observational_samples = 0;
+  std::uint64_t seed = 0;
+  std::vector<MethodSummary> methods;  ///< "ropes" first, then the baselines
+  std::int64_t best_repeat = 0;        ///< the repeat of ROPES' highest mean MCC (for plots)
   std::vector<double> probe_linear_mse, probe_mlp_mse, angle_variance;
   std::vector<double> ldr_accuracy, bayes_accuracy;
   std::vector<double> paper_mcc, paper_mse;  ///< NaN where the paper gives none
-  nlohmann::json calibration;                ///< ropes' affine fit (an Estimator Calibration)
+  nlohmann::json calibration;  ///< ropes' affine fit of repeat 0 (an Estimator Calibration)
   nlohmann::json to_json() const;
   /// The per-joint table, plain text, ROPES beside the paper and the baselines.
   std::string table() const;
@@ -58,7 +74,8 @@ struct RunEvaluation {
 
 /// Evaluates the run in `run_dir` on the dataset in `data_dir`. Throws std::invalid_argument
 /// when `data_dir` is the dataset the run trained on (same dataset id), when it lacks a
-/// joint of the run or observational samples, or when its images differ from the run's
+/// joint of the run, when it holds fewer observational samples than calibration_samples +
+/// test_samples, when an option is out of range, or when its images differ from the run's
 /// (cameras, size); nn::FileFormatError for unreadable files.
 RunEvaluation evaluate_run(const std::filesystem::path& run_dir,
                            const std::filesystem::path& data_dir,
@@ -66,6 +83,19 @@ RunEvaluation evaluate_run(const std::filesystem::path& run_dir,
 
 /// The installed paper_results.json.
 std::filesystem::path installed_paper_results();
+
+/// The samples one repeat of the protocol uses: indices into the observational samples.
+struct ProtocolSplit {
+  std::vector<Eigen::Index> calibration, test;
+};
+
+/// The protocol's draws: for repeat r, the permutation nn::shuffled_indices(n, seed, r) of
+/// [0, n), its first `calibration` entries and the `test` entries after them — disjoint by
+/// construction, and checked. Throws std::invalid_argument when repeats < 1, calibration < 2,
+/// test < 2 or calibration + test > n (naming the numbers).
+std::vector<ProtocolSplit> protocol_splits(std::int64_t n, std::int64_t repeats,
+                                           std::int64_t calibration, std::int64_t test,
+                                           std::uint64_t seed);
 
 namespace detail {
 /// The linear probe of the diagnostics: ridge regression (lambda 1e-3) of each column of
