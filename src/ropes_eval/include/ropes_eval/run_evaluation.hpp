@@ -11,8 +11,9 @@
 ///   - beside them |Spearman|, the best-assignment MCC (joints matched to distinct latents)
 ///     and the MSE of the affine calibration from every latent of the method,
 /// for ROPES and the baselines (the lambda = 0 AE2's latent k; LDR_k(y), the classifier's
-/// logit), and the diagnostics of repeat 0 (supervised probes from Y to each joint — a linear
-/// one and a small MLP, fitted on its calibration samples — and the LDR's held-out accuracy
+/// logit; principal component k of AE1's code, the PCA fitted on the run's training codes
+/// RUN/codes.npy), and the diagnostics of repeat 0 (supervised probes from Y to each joint — a
+/// linear one and a small MLP, fitted on its calibration samples — and the LDR's held-out accuracy
 /// against Bayes). Labels (the angles) are read here only.
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
