@@ -544,6 +544,120 @@ std::string RunEvaluation::table() const {
   return out.str();
 }
 
+std::string RunEvaluation::markdown() const {
+  const std::size_t reps = methods.empty() ? 0 : methods[0].repeats.size();
+  const MethodSummary& r = methods[0];
+  auto pm = [](double mean, double sd) { return fmt(mean) + " ± " + fmt(sd); };
+  // the paper's Table 1 has Joint 1 .. Joint 6 of the Panda; a run of other joints gets its own
+  std::vector<std::string> columns;
+  bool panda = true;
+  for (const std::string& j : joints)
+    panda =
+        panda && j.size() == 12 && j.rfind("panda_joint", 0) == 0 && j[11] >= '1' && j[11] <= '6';
+  if (panda)
+    for (int i = 1; i <= 6; ++i)
+      columns.push_back("panda_joint" + std::to_string(i));
+  else
+    columns = joints;
+  auto index_of = [&](const std::string& c) -> std::ptrdiff_t {
+    for (std::size_t k = 0; k < joints.size(); ++k)
+      if (joints[k] == c)
+        return static_cast<std::ptrdiff_t>(k);
+    return -1;
+  };
+  std::ostringstream out;
+  out << "# ropes-eval: " << config_name << "\n\n"
+      << "- run: `" << run_dir << "`\n"
+      << "- test data: `" << data_dir << "` (dataset " << dataset_id << "); trained on dataset "
+      << train_dataset_id << "\n"
+      << "- protocol: " << reps << " repeats, each " << calibration_samples << " calibration and "
+      << test_samples << " disjoint test samples drawn from the " << observational_samples
+      << " observational samples (seed " << seed
+      << "); mean ± std over the repeats; MSE in rad²\n\n";
+
+  out << "## MCC and MSE, laid out like the paper's Table 1\n\n| setup |";
+  for (const std::string& c : columns)
+    out << " " << c << " MCC | MSE |";
+  out << "\n| --- |";
+  for (std::size_t i = 0; i < columns.size(); ++i)
+    out << " --- | --- |";
+  out << "\n| this run (" << setting << ") |";
+  for (const std::string& c : columns) {
+    const std::ptrdiff_t k = index_of(c);
+    if (k < 0)
+      out << " -- | -- |";
+    else
+      out << " " << pm(r.mean.mcc[k], r.std.mcc[k]) << " | " << pm(r.mean.mse[k], r.std.mse[k])
+          << " |";
+  }
+  out << "\n| the paper (" << setting << ") |";
+  for (const std::string& c : columns) {
+    const std::ptrdiff_t k = index_of(c);
+    out << " " << (k < 0 ? "--" : fmt(paper_mcc[k])) << " | " << (k < 0 ? "--" : fmt(paper_mse[k]))
+        << " |";
+  }
+  // the difference, marked by which way it goes (a higher MCC and a lower MSE are better)
+  auto difference = [](double ours, double theirs, bool higher_is_better) -> std::string {
+    if (!std::isfinite(ours) || !std::isfinite(theirs))
+      return "--";
+    const double d = ours - theirs;
+    char b[48];
+    std::snprintf(b, sizeof b, "%+.3f", d);
+    if (std::fabs(d) < 0.0005)
+      return b;
+    return std::string(b) + ((d > 0) == higher_is_better ? " better" : " **worse**");
+  };
+  out << "\n| difference |";
+  for (const std::string& c : columns) {
+    const std::ptrdiff_t k = index_of(c);
+    if (k < 0)
+      out << " -- | -- |";
+    else
+      out << " " << difference(r.mean.mcc[k], paper_mcc[k], true) << " | "
+          << difference(r.mean.mse[k], paper_mse[k], false) << " |";
+  }
+  out << "\n\n## Baselines: MCC per joint\n\n"
+         "PCA's components have no pairing with the joints: its row is the best assignment's "
+         "MCC. The best-assignment MCC matches joints to distinct latents.\n\n| method |";
+  for (const std::string& j : joints)
+    out << " " << j << " |";
+  out << "\n| --- |";
+  for (std::size_t k = 0; k < joints.size(); ++k)
+    out << " --- |";
+  out << "\n";
+  auto row = [&](const std::string& label, const std::vector<double>& mean,
+                 const std::vector<double>& sd) {
+    out << "| " << label << " |";
+    for (std::size_t k = 0; k < joints.size(); ++k)
+      out << " " << pm(mean[k], sd[k]) << " |";
+    out << "\n";
+  };
+  row("ROPES", r.mean.mcc, r.std.mcc);
+  row("ROPES, best assignment", r.mean.best_assignment_mcc, r.std.best_assignment_mcc);
+  row("ROPES, Spearman", r.mean.spearman, r.std.spearman);
+  for (std::size_t m = 1; m < methods.size(); ++m) {
+    const MethodSummary& b = methods[m];
+    if (b.method == "pca_of_code")
+      row("PCA of AE1's code, best assignment", b.mean.best_assignment_mcc,
+          b.std.best_assignment_mcc);
+    else
+      row(b.method == "lambda0_autoencoder" ? "λ = 0 autoencoder"
+          : b.method == "ldr_logit"         ? "LDR logit"
+                                            : b.method,
+          b.mean.mcc, b.std.mcc);
+  }
+  out << "\n## Diagnostics (repeat 0's samples)\n\n"
+         "| joint | probe MSE from Y, linear | MLP | angle variance | LDR held-out accuracy | "
+         "Bayes accuracy | MSE from all of ROPES' latents (mean of the repeats) |\n"
+         "| --- | --- | --- | --- | --- | --- | --- |\n";
+  for (std::size_t k = 0; k < joints.size(); ++k)
+    out << "| " << joints[k] << " | " << fmt(probe_linear_mse[k], 4) << " | "
+        << (probe_mlp_mse.empty() ? "-" : fmt(probe_mlp_mse[k], 4)) << " | "
+        << fmt(angle_variance[k]) << " | " << fmt(ldr_accuracy[k]) << " | "
+        << fmt(bayes_accuracy[k]) << " | " << fmt(r.mean.mse_all_latents[k]) << " |\n";
+  return out.str();
+}
+
 std::vector<double> detail::linear_probe(const Eigen::MatrixXd& y, const Eigen::MatrixXd& angles,
                                          const std::vector<Eigen::Index>& cal,
                                          const std::vector<Eigen::Index>& test) {

@@ -134,6 +134,15 @@ TEST_F(Pipeline, TinyRunIsDeterministicPinnedAndLearnsTheSparsityPattern) {
       << e.text;
   const nlohmann::json results = json_of(a / "results.json");
   EXPECT_EQ(results["methods"]["ropes"]["mcc"].size(), 3u);
+  // results.md: the paper's Table 1 layout (six joints, the ones not intervened on "--"),
+  // the paper's row, the difference, the baselines
+  const std::string md = bytes_of(a / "results.md");
+  EXPECT_NE(md.find("| setup | panda_joint1 MCC | MSE | panda_joint2 MCC |"), std::string::npos)
+      << md;
+  EXPECT_NE(md.find("| this run (1c) | -- | -- | "), std::string::npos) << md;
+  EXPECT_NE(md.find("| the paper (1c) | -- | -- | 0.949 | 0.053 |"), std::string::npos) << md;
+  EXPECT_NE(md.find("| difference | -- | -- | "), std::string::npos) << md;
+  EXPECT_NE(md.find("| PCA of AE1's code, best assignment |"), std::string::npos) << md;
   EXPECT_EQ(results["methods"]["ropes"]["repeats"].size(), 3u);
   EXPECT_EQ(results["protocol"]["repeats"], 3);
   // the reported MCC is the mean of the repeats'

@@ -23,11 +23,11 @@ joint the mean and standard deviation over the repeats of the MCC (|Pearson| of 
 and joint k) and of the MSE in rad^2 of the affine calibration of joint k from latent k,
 beside the paper's numbers, the best-assignment MCC, Spearman, the calibration from every
 latent, the lambda = 0 autoencoder, the LDR logit and supervised probes from AE1's code.
-Writes RUN/results.json (or --out) and RUN/calibration.json (repeat 0's affine fit, for the
-Estimator).
+Writes RUN/results.json (or --out FILE), results.md beside it (the tables laid out like the
+paper's), and RUN/calibration.json (repeat 0's affine fit, for the Estimator).
 
 options:
-  --out FILE                results file (default RUN/results.json)
+  --out FILE                results file (default RUN/results.json; the .md beside it)
   --repeats R               draws of a calibration and a test set (default 15)
   --calibration-samples C   labelled samples a repeat fits on (default 1000)
   --test-samples N          samples a repeat scores on, disjoint from those (default 500)
@@ -102,8 +102,14 @@ int run(int argc, char** argv) {
   const ropes::eval::RunEvaluation ev = ropes::eval::evaluate_run(run_dir, data, options);
   const fs::path results = out.empty() ? fs::path(run_dir) / "results.json" : fs::path(out);
   write_text(results, ev.to_json().dump(2) + "\n");
+  fs::path markdown = results;
+  markdown.replace_extension(".md");
+  if (markdown == results)  // --out something.md: keep both
+    markdown += ".md";
+  write_text(markdown, ev.markdown());
   write_text(fs::path(run_dir) / "calibration.json", ev.calibration.dump(2) + "\n");
-  std::cout << ev.table() << "results: " << results.string() << "\n";
+  std::cout << ev.table() << "results: " << results.string() << " and " << markdown.string()
+            << "\n";
   return 0;
 }
 

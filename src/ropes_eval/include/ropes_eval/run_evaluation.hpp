@@ -71,6 +71,10 @@ struct RunEvaluation {
   nlohmann::json to_json() const;
   /// The per-joint table, plain text, ROPES beside the paper and the baselines.
   std::string table() const;
+  /// results.md: the run laid out like the paper's Table 1 (a joint's MCC and MSE side by
+  /// side, the paper's row below, then the difference, marked "worse" or "better"), the
+  /// baselines' MCC, and the diagnostics. Markdown, one document.
+  std::string markdown() const;
 };
 
 /// Evaluates the run in `run_dir` on the dataset in `data_dir`. Throws std::invalid_argument
