@@ -7,21 +7,11 @@
 #include <stdexcept>
 #include <string>
 
+#include "finite_check.hpp"
+
 namespace ropes::eval {
 
 namespace {
-
-void check_values(const char* function, const char* name,
-                  const Eigen::Ref<const Eigen::MatrixXd>& m) {
-  for (Eigen::Index c = 0; c < m.cols(); ++c)
-    for (Eigen::Index r = 0; r < m.rows(); ++r)
-      if (!std::isfinite(m(r, c))) {
-        std::ostringstream message;
-        message << function << ": " << name << " (" << r << ", " << c << ") is " << m(r, c)
-                << "; expected a finite value";
-        throw std::invalid_argument(message.str());
-      }
-}
 
 void check_rows(const char* function, Eigen::Index latent_rows, Eigen::Index joint_rows) {
   if (latent_rows != joint_rows || latent_rows < 2) {
@@ -47,8 +37,8 @@ void check_not_constant(const char* function, const char* name,
 AffineCalibration fit_affine(const Eigen::Ref<const Eigen::VectorXd>& latent,
                              const Eigen::Ref<const Eigen::VectorXd>& joint) {
   check_rows("fit_affine", latent.size(), joint.size());
-  check_values("fit_affine", "latent", latent);
-  check_values("fit_affine", "joint", joint);
+  detail::require_finite("fit_affine", "latent", latent);
+  detail::require_finite("fit_affine", "joint", joint);
   check_not_constant("fit_affine", "latent", latent);
   check_not_constant("fit_affine", "joint", joint);
   const double mx = latent.mean(), my = joint.mean();
@@ -63,16 +53,16 @@ double calibration_mse(const AffineCalibration& fit,
                        const Eigen::Ref<const Eigen::VectorXd>& latent,
                        const Eigen::Ref<const Eigen::VectorXd>& joint) {
   check_rows("calibration_mse", latent.size(), joint.size());
-  check_values("calibration_mse", "latent", latent);
-  check_values("calibration_mse", "joint", joint);
+  detail::require_finite("calibration_mse", "latent", latent);
+  detail::require_finite("calibration_mse", "joint", joint);
   return ((fit.scale * latent.array() + fit.offset) - joint.array()).square().mean();
 }
 
 LinearCalibration fit_linear(const Eigen::Ref<const Eigen::MatrixXd>& latents,
                              const Eigen::Ref<const Eigen::VectorXd>& joint) {
   check_rows("fit_linear", latents.rows(), joint.size());
-  check_values("fit_linear", "latents", latents);
-  check_values("fit_linear", "joint", joint);
+  detail::require_finite("fit_linear", "latents", latents);
+  detail::require_finite("fit_linear", "joint", joint);
   check_not_constant("fit_linear", "joint", joint);
   // centring takes the offset out of the solve; the decomposition's rank threshold drops
   // directions the samples do not span
@@ -95,8 +85,8 @@ double calibration_mse(const LinearCalibration& fit,
             << fit.weights.size() << " weights; expected the same";
     throw std::invalid_argument(message.str());
   }
-  check_values("calibration_mse", "latents", latents);
-  check_values("calibration_mse", "joint", joint);
+  detail::require_finite("calibration_mse", "latents", latents);
+  detail::require_finite("calibration_mse", "joint", joint);
   return ((latents * fit.weights).array() + fit.offset - joint.array()).square().mean();
 }
 

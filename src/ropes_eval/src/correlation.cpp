@@ -9,21 +9,11 @@
 #include <string>
 #include <vector>
 
+#include "finite_check.hpp"
+
 namespace ropes::eval {
 
 namespace {
-
-void check_finite(const std::string& function, const char* name,
-                  const Eigen::Ref<const Eigen::VectorXd>& v) {
-  for (Eigen::Index i = 0; i < v.size(); ++i) {
-    if (!std::isfinite(v(i))) {
-      std::ostringstream message;
-      message << function << ": " << name << "[" << i << "] is " << v(i)
-              << "; expected a finite value";
-      throw std::invalid_argument(message.str());
-    }
-  }
-}
 
 void check_pair(const std::string& function, const Eigen::Ref<const Eigen::VectorXd>& x,
                 const Eigen::Ref<const Eigen::VectorXd>& y) {
@@ -33,8 +23,8 @@ void check_pair(const std::string& function, const Eigen::Ref<const Eigen::Vecto
             << "; expected two samples of the same length, at least 2";
     throw std::invalid_argument(message.str());
   }
-  check_finite(function, "x", x);
-  check_finite(function, "y", y);
+  detail::require_finite(function, "x", x);
+  detail::require_finite(function, "y", y);
 }
 
 double pearson_unchecked(const std::string& function, const Eigen::Ref<const Eigen::VectorXd>& x,
@@ -74,7 +64,7 @@ double pearson(const Eigen::Ref<const Eigen::VectorXd>& x,
 }
 
 Eigen::VectorXd average_ranks(const Eigen::Ref<const Eigen::VectorXd>& x) {
-  check_finite("average_ranks", "x", x);
+  detail::require_finite("average_ranks", "x", x);
   const Eigen::Index n = x.size();
   std::vector<Eigen::Index> order(static_cast<std::size_t>(n));
   std::iota(order.begin(), order.end(), Eigen::Index{0});
@@ -134,7 +124,7 @@ Eigen::MatrixXd correlation_matrix(const Eigen::Ref<const Eigen::MatrixXd>& late
     for (Eigen::Index c = 0; c < m.cols(); ++c) {
       const std::string where =
           std::string("correlation_matrix: ") + what + " column " + std::to_string(c);
-      check_finite(where, "value", m.col(c));
+      detail::require_finite(where, "value", m.col(c));
       if (m.col(c).minCoeff() == m.col(c).maxCoeff())
         throw std::invalid_argument(where + " is constant, so its correlation is undefined");
       out.col(c) =
@@ -158,14 +148,7 @@ Assignment best_assignment(const Eigen::Ref<const Eigen::MatrixXd>& weights) {
             << "]; expected [joints, latents] with 1 <= joints <= latents";
     throw std::invalid_argument(message.str());
   }
-  for (Eigen::Index j = 0; j < k; ++j)
-    for (Eigen::Index l = 0; l < d; ++l)
-      if (!std::isfinite(weights(j, l))) {
-        std::ostringstream message;
-        message << "best_assignment: weight (" << j << ", " << l << ") is " << weights(j, l)
-                << "; expected a finite value";
-        throw std::invalid_argument(message.str());
-      }
+  detail::require_finite("best_assignment", "weight", weights);
   // minimum-cost assignment of cost = -weight, rows added one at a time; each addition
   // finds a shortest augmenting path (Dijkstra on reduced costs) and updates the dual
   // potentials u (rows) and v (columns) so that reduced costs stay >= 0. Index 0 of the

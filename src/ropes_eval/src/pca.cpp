@@ -6,6 +6,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "finite_check.hpp"
+
 namespace ropes::eval {
 
 Eigen::MatrixXd Pca::project(const Eigen::Ref<const Eigen::MatrixXd>& x) const {
@@ -25,14 +27,7 @@ Pca fit_pca(const Eigen::Ref<const Eigen::MatrixXd>& x, Eigen::Index k) {
             << " values; expected at least 2 samples and 1 <= components <= values";
     throw std::invalid_argument(message.str());
   }
-  for (Eigen::Index c = 0; c < d; ++c)
-    for (Eigen::Index r = 0; r < n; ++r)
-      if (!std::isfinite(x(r, c))) {
-        std::ostringstream message;
-        message << "fit_pca: sample " << r << ", value " << c << " is " << x(r, c)
-                << "; expected a finite value";
-        throw std::invalid_argument(message.str());
-      }
+  detail::require_finite("fit_pca", "x", x);
   Pca p;
   p.mean = x.colwise().mean();
   const Eigen::MatrixXd centred = x.rowwise() - p.mean;

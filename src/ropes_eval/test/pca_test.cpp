@@ -62,7 +62,7 @@ TEST(Pca, RefusesWhatItCannotFit) {
   expect_message([&] { fit_pca(x.topRows(1), 1); }, "at least 2 samples");
   Eigen::MatrixXd bad = x;
   bad(3, 1) = std::numeric_limits<double>::infinity();
-  expect_message([&] { fit_pca(bad, 1); }, "sample 3, value 1 is inf");
+  expect_message([&] { fit_pca(bad, 1); }, "fit_pca: x (3, 1) is inf");
   expect_message([&] { fit_pca(x, 1).project(x.leftCols(3)); },
                  "samples of 3 values; the fit has 4");
 }
