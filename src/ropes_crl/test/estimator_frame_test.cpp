@@ -20,8 +20,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -232,6 +234,67 @@ TEST_P(StandardizedRun, EveryNetworkCarriesTheOneFittedMap) {
   std::vector<float> values(scale.size() / 4);
   std::memcpy(values.data(), scale.data(), scale.size());
   EXPECT_TRUE(std::any_of(values.begin(), values.end(), [](float v) { return v != 1.0f; }));
+}
+
+std::vector<std::uint8_t> file_bytes(const fs::path& p) {
+  std::FILE* f = std::fopen(p.c_str(), "rb");
+  std::vector<std::uint8_t> out;
+  if (f == nullptr)
+    return out;
+  std::uint8_t buf[65536];
+  std::size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, f)) > 0)
+    out.insert(out.end(), buf, buf + n);
+  std::fclose(f);
+  return out;
+}
+
+// Stage 3 trains two AE2s side by side at 2 threads. When one fails (here the test hook
+// throws at its step-10 checkpoint), the other stops at its next step with a checkpoint,
+// the model waiting for a free worker (the lambda = 0 AE2) never starts, and the first
+// failure reaches the caller; started again, the run ends in the bytes of a run never
+// stopped.
+TEST(SideBySideAe2s, OneFailureStopsTheOthersWithACheckpointAndTheRunResumes) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("ropes_crl_side_by_side_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  ExperimentConfig config = few_steps("1c-small");
+  // 400 steps: the other AE2 is far from done when the first fails at step 10
+  config.ae2_training.steps = 400;
+  config.checkpoint_every = 10;
+  write_dataset(dir / "data", config.cameras);
+  TrainOptions options;
+  options.threads = 2;
+  train(config, dir / "data", dir / "whole", options);
+
+  const std::string failing = std::string("ae2 ") + kJoints[0];
+  TrainOptions hooked = options;
+  hooked.on_checkpoint = [&](const std::string& stage, std::int64_t step) {
+    if (stage == failing && step == 10)
+      throw std::runtime_error("injected failure of " + stage);
+  };
+  const fs::path run = dir / "stopped";
+  try {
+    train(config, dir / "data", run, hooked);
+    ADD_FAILURE() << "the injected failure did not reach the caller";
+  } catch (const std::runtime_error& e) {
+    EXPECT_EQ(std::string(e.what()), "injected failure of " + failing);
+  }
+  const std::string other = std::string("ae2.") + kJoints[1];
+  EXPECT_FALSE(fs::exists(run / (std::string("ae2.") + kJoints[0] + ".safetensors")));
+  EXPECT_TRUE(fs::exists(run / (std::string("ae2.") + kJoints[0] + ".checkpoint.safetensors")));
+  // the other one stopped short of its end, with a checkpoint of the step it reached
+  EXPECT_TRUE(fs::exists(run / (other + ".checkpoint.safetensors")));
+  EXPECT_FALSE(fs::exists(run / (other + ".safetensors")));
+  EXPECT_FALSE(fs::exists(run / "ae2.lambda0.safetensors"));
+  EXPECT_FALSE(fs::exists(run / "ae2.lambda0.checkpoint.safetensors"));
+
+  train(config, dir / "data", run, options);
+  for (const char* f : {"ae2.a.safetensors", "ae2.b.safetensors", "ae2.lambda0.safetensors"})
+    EXPECT_EQ(file_bytes(run / f), file_bytes(dir / "whole" / f)) << f << " differs";
+  EXPECT_FALSE(file_bytes(run / "ae2.lambda0.safetensors").empty());
+  nn::set_num_threads(2);
+  fs::remove_all(dir);
 }
 
 INSTANTIATE_TEST_SUITE_P(SmallPreset, EstimatorFrame,
