@@ -160,6 +160,43 @@ Tensor Estimator::ldr_logits_from_codes(const Tensor& y) {
   return nn::concat(cols, 1);
 }
 
+Tensor Estimator::reconstruct(const Tensor& images) {
+  const ExperimentConfig& c = state_->config;
+  const Tensor y = codes(images);  // checks the shape
+  nn::GradModeGuard no_grad(false);
+  const std::int64_t n = images.shape()[0], side = y.shape()[2];
+  const Tensor x = state_->ae1->decode(
+      nn::reshape(y, Shape{n * c.cameras, y.shape()[1] / c.cameras, side, side}));
+  return nn::reshape(x, images.shape());
+}
+
+Tensor Estimator::reconstruct_through_ae2(const Tensor& images, std::size_t joint) {
+  if (joint >= joints().size())
+    throw std::invalid_argument("Estimator::reconstruct_through_ae2: joint " +
+                                std::to_string(joint) + " of " + std::to_string(joints().size()));
+  const ExperimentConfig& c = state_->config;
+  const Tensor y = codes(images);
+  nn::GradModeGuard no_grad(false);
+  Ae2& net = *state_->ae2[state_->ae2.size() == 1 ? 0 : joint];
+  Tensor back = net.decode(net.encode(y));
+  // AE2's coordinates -> Y's: s = (y - shift) * scale, so y = s / scale + shift (scale 0:
+  // the element was dropped; its shift is what the map assumed)
+  if (const CodeStandardization* map = net.input_map()) {
+    std::vector<float> v(back.data(), back.data() + back.numel());
+    const std::int64_t per = map->shift().numel();
+    for (std::int64_t i = 0; i < back.numel(); ++i) {
+      const float scale = map->scale().data()[i % per], shift = map->shift().data()[i % per];
+      v[static_cast<std::size_t>(i)] =
+          scale != 0.0f ? v[static_cast<std::size_t>(i)] / scale + shift : shift;
+    }
+    back = Tensor(back.shape(), v);
+  }
+  const std::int64_t n = images.shape()[0], side = y.shape()[2];
+  const Tensor x = state_->ae1->decode(
+      nn::reshape(back, Shape{n * c.cameras, y.shape()[1] / c.cameras, side, side}));
+  return nn::reshape(x, images.shape());
+}
+
 bool Estimator::has_lambda0() const {
   return state_->lambda0 != nullptr;
 }

@@ -10,6 +10,7 @@
 #include <ropes_crl/estimator.hpp>
 #include <ropes_crl/trainer.hpp>
 #include <ropes_nn/allocation_counter.hpp>
+#include <ropes_nn/checkpoint.hpp>
 #include <ropes_nn/dataset.hpp>
 #include <ropes_nn/parallel.hpp>
 #include <ropes_nn/philox.hpp>
@@ -205,6 +206,63 @@ TEST_P(EstimatorFrame, AllocatesNothingAfterWarmUpAndMatchesTheBatchPath) {
       at_one_thread = all;
     EXPECT_EQ(all, at_one_thread) << threads << " thread(s) against 1";
   }
+}
+
+// The report's reconstructions: AE1's is its own network's decode(encode(x)) camera by
+// camera (checked against an Ae1 loaded from the run's file), and the one through joint k's
+// AE2 decodes AE2's reconstruction of Y — with standardised codes mapped back to Y's
+// coordinates first: for a standardised run it is checked against Y = s / scale + shift
+// computed here from the saved map
+TEST_P(EstimatorFrame, ReconstructsThroughAe1AndThroughEachAe2) {
+  Estimator estimator = Estimator::load(dir_ / "run");
+  const ExperimentConfig& c = estimator.config();
+  const std::int64_t cameras = c.cameras, n = 3;
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(n * cameras * kSize * kSize));
+  nn::Buffer values(bytes.size());
+  for (std::int64_t f = 0; f < n; ++f) {
+    const double q[2] = {-0.8 + 0.7 * static_cast<double>(f), 0.4 * static_cast<double>(f)};
+    for (std::int64_t cam = 0; cam < cameras; ++cam)
+      draw(q, cam, &bytes[static_cast<std::size_t>((f * cameras + cam) * kSize * kSize)]);
+  }
+  for (std::size_t i = 0; i < bytes.size(); ++i)
+    values[i] = static_cast<float>(bytes[i]) / 255.0f;
+  const nn::Tensor x(nn::Shape{n, cameras, kSize, kSize}, values);
+  const nn::Tensor r = estimator.reconstruct(x);
+  ASSERT_EQ(r.shape(), x.shape());
+  Ae1 ae1(c.ae1);
+  nn::load_module(ae1, dir_ / "run" / "ae1.safetensors");
+  nn::GradModeGuard no_grad(false);
+  const nn::Tensor own = ae1(nn::reshape(x, nn::Shape{n * cameras, 1, kSize, kSize}));
+  for (std::int64_t i = 0; i < own.numel(); ++i)
+    ASSERT_EQ(r.data()[i], own.data()[i]) << i;
+  for (std::size_t k = 0; k < estimator.joints().size(); ++k) {
+    const nn::Tensor through = estimator.reconstruct_through_ae2(x, k);
+    ASSERT_EQ(through.shape(), x.shape());
+    // by hand: Y, AE2 of joint k, back to Y's coordinates, AE1's decoder
+    Ae2 ae2(c.ae2);
+    nn::load_module(ae2, dir_ / "run" /
+                             ("ae2." +
+                              (c.ae2_training.mode == "per_joint" ? estimator.joints()[k]
+                                                                  : std::string("joint")) +
+                              ".safetensors"));
+    const nn::Tensor y = estimator.codes(x);
+    nn::Tensor back = ae2.decode(ae2.encode(y));
+    if (const CodeStandardization* map = ae2.input_map()) {
+      std::vector<float> v(back.data(), back.data() + back.numel());
+      for (std::int64_t i = 0; i < back.numel(); ++i) {
+        const float sc = map->scale().data()[i % map->scale().numel()];
+        const float sh = map->shift().data()[i % map->shift().numel()];
+        v[static_cast<std::size_t>(i)] = sc != 0.0f ? v[static_cast<std::size_t>(i)] / sc + sh : sh;
+      }
+      back = nn::Tensor(back.shape(), v);
+    }
+    const std::int64_t side = y.shape()[2];
+    const nn::Tensor want =
+        ae1.decode(nn::reshape(back, nn::Shape{n * cameras, y.shape()[1] / cameras, side, side}));
+    for (std::int64_t i = 0; i < want.numel(); ++i)
+      ASSERT_EQ(through.data()[i], want.data()[i]) << "joint " << k << ", value " << i;
+  }
+  EXPECT_THROW(estimator.reconstruct_through_ae2(x, 2), std::invalid_argument);
 }
 
 // With both standardisations every LDR and AE2 carries the one map the trainer fitted, and

@@ -65,6 +65,15 @@ class Estimator {
   Tensor lambda0_latents_from_codes(const Tensor& y);
   bool has_lambda0() const;
 
+  /// AE1's reconstruction of `images` [n, cameras, S, S]: decode(encode(x)), each camera's
+  /// image on its own, [n, cameras, S, S] (values as the decoder gives them, not clamped).
+  Tensor reconstruct(const Tensor& images);
+  /// The paper's occlusion figure's last panel: the code Y of `images`, reconstructed by the
+  /// AE2 that estimates joint `joint` (back to Y's coordinates when it reads standardised
+  /// codes; 0 stays where the map dropped an element) and decoded by AE1's decoder:
+  /// [n, cameras, S, S]. Throws std::invalid_argument for a joint out of range.
+  Tensor reconstruct_through_ae2(const Tensor& images, std::size_t joint);
+
   void set_calibration(const Calibration& calibration);
   bool calibrated() const;
   /// latents [n, J] -> angles [n, J] with the calibration. std::logic_error without one.
