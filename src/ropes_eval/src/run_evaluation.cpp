@@ -20,11 +20,16 @@
 
 #include "ropes_eval/calibration.hpp"
 #include "ropes_eval/correlation.hpp"
+#include "ropes_eval/occlusion.hpp"
 #include "ropes_eval/pca.hpp"
+#include "ropes_eval/supervised.hpp"
+#include "text_format.hpp"
 
 namespace ropes::eval {
 
 namespace fs = std::filesystem;
+using detail::difference;
+using detail::fmt;
 using nn::Shape;
 using nn::Tensor;
 
@@ -211,14 +216,6 @@ std::vector<double> mlp_probe(const Eigen::MatrixXd& y, const Eigen::MatrixXd& a
   return out;
 }
 
-std::string fmt(double v, int digits = 3) {
-  if (!std::isfinite(v))
-    return "-";
-  char b[32];
-  std::snprintf(b, sizeof b, "%.*f", digits, v);
-  return b;
-}
-
 }  // namespace
 
 std::vector<ProtocolSplit> protocol_splits(std::int64_t n, std::int64_t repeats,
@@ -307,7 +304,11 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
     if (g == observational)
       rows.push_back(r);
   }
-  // the protocol's sizes, checked before the images are encoded
+  // the protocol's sizes and the occlusion, checked before the images are encoded
+  if (options.occlusion < 0 || options.occlusion > config.image_size)
+    throw std::invalid_argument("the occlusion square is " + std::to_string(options.occlusion) +
+                                " px; expected 0 (none) to the image's side, " +
+                                std::to_string(config.image_size));
   const std::int64_t wanted = options.calibration_samples + options.test_samples;
   if (options.repeats < 1 || options.calibration_samples < 2 || options.test_samples < 2)
     throw std::invalid_argument("the protocol asks for " + std::to_string(options.repeats) +
@@ -333,7 +334,10 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
   for (std::int64_t b = 0; b < n; b += 256) {
     const std::int64_t m = std::min<std::int64_t>(256, n - b);
     const std::vector<std::int64_t> part(rows.begin() + b, rows.begin() + b + m);
-    const nn::NpyArray raw = reader.read_rows_at("images", part);
+    nn::NpyArray raw = reader.read_rows_at("images", part);
+    if (options.occlusion > 0)
+      occlude(raw.data, part, config.cameras, side, side, options.occlusion,
+              options.occlusion_seed);
     nn::Buffer x(static_cast<std::size_t>(m * per));
     for (std::size_t i = 0; i < x.size(); ++i)
       x[i] = static_cast<float>(raw.data[i]) / 255.0f;
@@ -367,6 +371,8 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
   ev.test_samples = options.test_samples;
   ev.observational_samples = n;
   ev.seed = options.seed;
+  ev.occlusion = options.occlusion;
+  ev.occlusion_seed = options.occlusion_seed;
   // the PCA baseline: the leading principal components of AE1's code, fitted label-free on
   // the codes of the run's own training set (RUN/codes.npy), component k against joint k
   const Eigen::MatrixXd pca = pca_of_codes(run_dir / "codes.npy", y, jn);
@@ -375,6 +381,15 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
     sources.push_back({"lambda0_autoencoder", &z0});
   sources.push_back({"ldr_logit", &logit});
   sources.push_back({"pca_of_code", &pca});
+  // the supervised baselines: angle estimates straight from Y
+  std::vector<std::pair<std::string, Eigen::MatrixXd>> supervised;
+  for (const SupervisedEncoder* s : options.supervised) {
+    char name[48];
+    std::snprintf(name, sizeof name, "supervised_%g%%", 100.0 * s->fraction());
+    supervised.emplace_back(name, s->predict(y));
+  }
+  for (const auto& [name, estimate] : supervised)
+    sources.push_back({name, &estimate});
   for (const auto& [name, latents] : sources) {
     MethodSummary m;
     m.method = name;
@@ -384,6 +399,10 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
                             {"offset", nlohmann::json::array()}};
       m.repeats.push_back(
           score_method(name, *latents, angles, splits[r].calibration, splits[r].test, &fit));
+      if (name.rfind("supervised_", 0) == 0)  // an angle estimate: its own error
+        for (Eigen::Index k = 0; k < jn; ++k)
+          m.repeats.back().mse[static_cast<std::size_t>(k)] =
+              ((*latents)(splits[r].test, k) - angles(splits[r].test, k)).array().square().mean();
       if (name == "ropes" && r == 0)
         ev.calibration = fit;
     }
@@ -400,6 +419,21 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
     if (sum > best) {
       best = sum;
       ev.best_repeat = static_cast<std::int64_t>(r);
+    }
+  }
+  {
+    const ProtocolSplit& b = splits[static_cast<std::size_t>(ev.best_repeat)];
+    for (std::int64_t k = 0; k < jn; ++k) {
+      const AffineCalibration a = calibrate(z(b.calibration, k), angles(b.calibration, k));
+      std::vector<double> latent, estimate, truth;
+      for (Eigen::Index i : b.test) {
+        latent.push_back(z(i, k));
+        estimate.push_back(a.scale * z(i, k) + a.offset);
+        truth.push_back(angles(i, k));
+      }
+      ev.scatter_latent.push_back(std::move(latent));
+      ev.scatter_estimate.push_back(std::move(estimate));
+      ev.scatter_truth.push_back(std::move(truth));
     }
   }
   // the diagnostics, on repeat 0's samples (the MLP probe trains for seconds a repeat)
@@ -473,7 +507,9 @@ nlohmann::json RunEvaluation::to_json() const {
             {"test_samples", test_samples},
             {"observational_samples", observational_samples},
             {"seed", seed},
-            {"best_repeat", best_repeat}}},
+            {"best_repeat", best_repeat},
+            {"occlusion", occlusion},
+            {"occlusion_seed", occlusion_seed}}},
           {"methods", by_method},
           {"diagnostics",
            {{"probe_linear_mse", nums(probe_linear_mse)},
@@ -596,17 +632,6 @@ std::string RunEvaluation::markdown() const {
     out << " " << (k < 0 ? "--" : fmt(paper_mcc[k])) << " | " << (k < 0 ? "--" : fmt(paper_mse[k]))
         << " |";
   }
-  // the difference, marked by which way it goes (a higher MCC and a lower MSE are better)
-  auto difference = [](double ours, double theirs, bool higher_is_better) -> std::string {
-    if (!std::isfinite(ours) || !std::isfinite(theirs))
-      return "--";
-    const double d = ours - theirs;
-    char b[48];
-    std::snprintf(b, sizeof b, "%+.3f", d);
-    if (std::fabs(d) < 0.0005)
-      return b;
-    return std::string(b) + ((d > 0) == higher_is_better ? " better" : " **worse**");
-  };
   out << "\n| difference |";
   for (const std::string& c : columns) {
     const std::ptrdiff_t k = index_of(c);

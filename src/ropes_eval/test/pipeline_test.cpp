@@ -461,3 +461,132 @@ TEST_F(Pipeline, PaperPresetStartsCheckpointsAndResumes) {
     logged += m["stage"] == "ae1" ? 1 : 0;
   EXPECT_EQ(logged, 2) << "each AE1 step logged once";
 }
+
+// ropes-eval --suite: the id test set generated into the cache on the first run and found
+// there on the second (which generates nothing and writes the same bytes), the occlusion
+// suite at each size asked, OOD skipped with its reason for one camera and run for two (the
+// tiny-2c_ood test set), the report's files
+TEST_F(Pipeline, SuitesGenerateTheirTestDataOnceAndReportEverySuite) {
+  const fs::path run_dir = dir_ / "suite_run", cache = dir_ / "cache";
+  const Output t = train(run_dir.string());
+  ASSERT_EQ(t.rc, 0) << t.text;
+  const std::string eval = kEval + " --run " + run_dir.string() + " --data-cache " +
+                           cache.string() +
+                           " --suite id,ood,occlusion --occlusion-sizes 8,16 --probe-steps 50"
+                           " --repeats 2 --calibration-samples 20 --test-samples 20 --out ";
+  const Output first = run(eval + (dir_ / "report1").string());
+  ASSERT_EQ(first.rc, 0) << first.text;
+  EXPECT_NE(first.text.find("generating tiny-1c (seed 1)"), std::string::npos) << first.text;
+  EXPECT_NE(first.text.find("ood: no ood test set is defined for 'tiny-1c'"), std::string::npos)
+      << first.text;
+  const Output second = run(eval + (dir_ / "report2").string());
+  ASSERT_EQ(second.rc, 0) << second.text;
+  EXPECT_EQ(second.text.find("generating"), std::string::npos) << second.text;
+  EXPECT_NE(second.text.find("(from the cache)"), std::string::npos) << second.text;
+  EXPECT_EQ(bytes_of(dir_ / "report1" / "results.md"), bytes_of(dir_ / "report2" / "results.md"));
+  const nlohmann::json r = json_of(dir_ / "report1" / "results.json");
+  EXPECT_EQ(r["format"], "ropes-eval-report");
+  ASSERT_EQ(r["suites"].size(), 3u) << r.dump(1);
+  EXPECT_EQ(r["suites"][0]["name"], "id");
+  EXPECT_EQ(r["suites"][1]["name"], "id occlusion 8");
+  EXPECT_EQ(r["suites"][2]["results"]["protocol"]["occlusion"], 16);
+  EXPECT_EQ(r["notes"].size(), 1u);
+  // the supervised baseline at the default 1, 5, 10, 100 % of the 280 training rows (40
+  // anchors, 7 regimes): nested seeded subsets of round(f * rows) labels, at least 2, scored
+  // on every suite; with every label it fits its training labels better than their mean does
+  // (the loss is in standardised units, where the mean scores 1; the tiny run's AE1 trained
+  // for 30 steps, so its codes carry little: 0.975 when this was written)
+  ASSERT_EQ(r["supervised"].size(), 4u) << r["supervised"].dump();
+  EXPECT_EQ(r["supervised"][0]["labels"], 3);
+  EXPECT_EQ(r["supervised"][1]["labels"], 14);
+  EXPECT_EQ(r["supervised"][3]["labels"], 280);
+  EXPECT_LT(r["supervised"][3]["final_loss"].get<double>(), 1.0);
+  for (const nlohmann::json& s : r["suites"])
+    EXPECT_TRUE(s["results"]["methods"].contains("supervised_100%")) << s["name"];
+  // the occluded suites see other latents: their MCC differs from the clean one's
+  EXPECT_NE(r["suites"][0]["results"]["methods"]["ropes"]["mcc"],
+            r["suites"][2]["results"]["methods"]["ropes"]["mcc"]);
+  const std::string md = bytes_of(dir_ / "report1" / "results.md");
+  EXPECT_NE(md.find("| id | 16 | tiny-1c |"), std::string::npos) << md;
+  EXPECT_NE(md.find("| labels a supervised encoder needs to match ROPES |"), std::string::npos)
+      << md;
+
+  // two cameras: the OOD test set of the paper's OOD table, its appendix row beside ours
+  for (const char* seed : {"0"}) {
+    const Output g = run(kGenerate + " --config tiny-2c --seed " + seed + " --out " +
+                         (dir_ / "data2c").string());
+    ASSERT_EQ(g.rc, 0) << g.text;
+  }
+  const fs::path run2c = dir_ / "suite_run_2c";
+  const Output t2 = run(kTrain + " --config 2c-tiny --data " + (dir_ / "data2c").string() +
+                        " --out " + run2c.string() + " --threads 2 --progress lines");
+  ASSERT_EQ(t2.rc, 0) << t2.text;
+  const Output ood = run(kEval + " --run " + run2c.string() + " --data-cache " + cache.string() +
+                         " --suite ood --probe-steps 0 --repeats 2 --calibration-samples 20"
+                         " --test-samples 20 --out " +
+                         (dir_ / "report2c").string());
+  ASSERT_EQ(ood.rc, 0) << ood.text;
+  EXPECT_NE(ood.text.find("generating tiny-2c_ood (seed 1)"), std::string::npos) << ood.text;
+  const std::string md2 = bytes_of(dir_ / "report2c" / "results.md");
+  EXPECT_NE(md2.find("| ood | -- | tiny-2c_ood |"), std::string::npos) << md2;
+  EXPECT_NE(md2.find("| the paper | -- | | 0.084 | 0.017 | 0.239 | 0.048 | 0.199 | 0.120 |"),
+            std::string::npos)
+      << md2;
+  // a suite that is not one
+  const Output bad = run(kEval + " --run " + run2c.string() + " --suite id,odd");
+  EXPECT_EQ(bad.rc, 2) << bad.text;
+  EXPECT_NE(bad.text.find("--suite names 'odd'; expected id, ood, causal or occlusion"),
+            std::string::npos)
+      << bad.text;
+}
+
+// report.html opens from a file in headless Chromium and its screenshot shows the plots:
+// not blank, scatter points, curves, heat maps and images drawn (report_screenshot_check.py);
+// the same page with its SVG hidden fails the check, so the check can fail. Skips when
+// Chromium or Python's PIL is absent (ci/install-deps installs both).
+TEST_F(Pipeline, ReportOpensInHeadlessChromiumAndShowsItsPlots) {
+  const std::string chromium = ROPES_CHROMIUM_EXE;
+  if (chromium.empty() || chromium.find("NOTFOUND") != std::string::npos)
+    GTEST_SKIP() << "no chromium: apt-get install chromium (ci/install-deps does)";
+  if (run("/usr/bin/python3 -c 'import PIL'").rc != 0)
+    GTEST_SKIP() << "no python3-pil: apt-get install python3-pil (ci/install-deps does)";
+  const fs::path run_dir = dir_ / "report_run", report = dir_ / "report_html";
+  const Output t = train(run_dir.string());
+  ASSERT_EQ(t.rc, 0) << t.text;
+  const Output e =
+      run(kEval + " --run " + run_dir.string() + " --data-cache " + (dir_ / "cache").string() +
+          " --suite id,occlusion --occlusion-sizes 8 --probe-steps 0 --repeats 2"
+          " --calibration-samples 100 --test-samples 200 --supervised 10,100 --out " +
+          report.string());
+  ASSERT_EQ(e.rc, 0) << e.text;
+  const std::string html = bytes_of(report / "report.html");
+  // self-contained: no script, and no address but SVG's namespace name
+  EXPECT_EQ(html.find("<script"), std::string::npos) << "no JavaScript";
+  for (std::size_t at = html.find("http"); at != std::string::npos; at = html.find("http", at + 1))
+    EXPECT_EQ(html.compare(at, 26, "http://www.w3.org/2000/svg"), 0) << html.substr(at, 60);
+  auto shoot = [&](const fs::path& page, const fs::path& png) {
+    return run("timeout 120 " + chromium +
+               " --headless --no-sandbox --disable-gpu --hide-scrollbars --user-data-dir=" +
+               (dir_ / "chromium-profile").string() + " --window-size=1500,4200 --screenshot=" +
+               png.string() + " file://" + page.string());
+  };
+  const Output shot = shoot(report / "report.html", dir_ / "shot.png");
+  ASSERT_TRUE(fs::exists(dir_ / "shot.png")) << shot.text;
+  const Output check = run("/usr/bin/python3 " + std::string(ROPES_EVAL_TEST_DIR) +
+                           "/report_screenshot_check.py " + (dir_ / "shot.png").string());
+  EXPECT_EQ(check.rc, 0) << check.text;
+  // the page with every plot hidden must fail the same check
+  std::string hidden = html;
+  for (std::size_t at = hidden.find("<svg "); at != std::string::npos;
+       at = hidden.find("<svg ", at + 1))
+    hidden.insert(at + 5, "style=\"display:none\" ");
+  {
+    std::ofstream out(dir_ / "hidden.html");
+    out << hidden;
+  }
+  shoot(dir_ / "hidden.html", dir_ / "hidden.png");
+  ASSERT_TRUE(fs::exists(dir_ / "hidden.png"));
+  const Output bad = run("/usr/bin/python3 " + std::string(ROPES_EVAL_TEST_DIR) +
+                         "/report_screenshot_check.py " + (dir_ / "hidden.png").string());
+  EXPECT_NE(bad.rc, 0) << bad.text;
+}

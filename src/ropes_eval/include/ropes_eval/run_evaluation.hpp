@@ -25,12 +25,22 @@
 
 namespace ropes::eval {
 
+class SupervisedEncoder;
+
 struct RunEvaluationOptions {
   std::int64_t repeats = 15;                ///< draws of a calibration set and a test set
   std::int64_t calibration_samples = 1000;  ///< labelled samples each repeat fits on
   std::int64_t test_samples = 500;          ///< disjoint from them, each repeat scores on
   std::uint64_t seed = 0;                   ///< the draws' and the MLP probe's
   std::int64_t probe_steps = 3000;          ///< MLP probe training steps (0: no MLP probe)
+  /// The occlusion suite: a white square of this many pixels painted into every camera image
+  /// of every sample before it is encoded (occlusion.hpp); 0: none.
+  std::int64_t occlusion = 0;
+  std::uint64_t occlusion_seed = 0;  ///< where the squares go (occlusion_square)
+  /// Supervised baselines (supervised.hpp), scored as methods named "supervised_<p>%" (p:
+  /// the percentage of labelled training samples); their latents are their angle estimates,
+  /// and their "mse" is the estimate's own error (no calibration). Not owned.
+  std::vector<const SupervisedEncoder*> supervised;
   /// paper_results.json (the paper's table); empty: the installed one.
   std::filesystem::path paper_results;
 };
@@ -62,8 +72,13 @@ struct RunEvaluation {
   std::vector<std::string> joints;
   std::int64_t calibration_samples = 0, test_samples = 0, observational_samples = 0;
   std::uint64_t seed = 0;
+  std::int64_t occlusion = 0;  ///< the square's side in pixels (0: none)
+  std::uint64_t occlusion_seed = 0;
   std::vector<MethodSummary> methods;  ///< "ropes" first, then the baselines
   std::int64_t best_repeat = 0;        ///< the repeat of ROPES' highest mean MCC (for plots)
+  /// ROPES on the best repeat's test samples, for the scatter plots: per joint k, latent k,
+  /// joint k estimated by that repeat's affine calibration, and the true angle (radians)
+  std::vector<std::vector<double>> scatter_latent, scatter_estimate, scatter_truth;
   std::vector<double> probe_linear_mse, probe_mlp_mse, angle_variance;
   std::vector<double> ldr_accuracy, bayes_accuracy;
   std::vector<double> paper_mcc, paper_mse;  ///< NaN where the paper gives none

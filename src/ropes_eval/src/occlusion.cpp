@@ -1,0 +1,56 @@
+#include "ropes_eval/occlusion.hpp"
+
+#include <ropes_nn/philox.hpp>
+
+#include <algorithm>
+#include <stdexcept>
+#include <string>
+
+namespace ropes::eval {
+
+OcclusionSquare occlusion_square(std::uint64_t seed, std::int64_t sample, std::int64_t camera,
+                                 std::int64_t width, std::int64_t height, std::int64_t size) {
+  if (size < 1 || size > std::min(width, height) || camera < 0 || camera >= 65536 || sample < 0)
+    throw std::invalid_argument(
+        "occlusion_square: a square of " + std::to_string(size) + " px in a " +
+        std::to_string(width) + "x" + std::to_string(height) + " image, camera " +
+        std::to_string(camera) + ", sample " + std::to_string(sample) +
+        "; expected 1 <= size <= the image's shorter side, 0 <= camera < 65536, sample >= 0");
+  nn::PhiloxStream rng(
+      seed, (static_cast<std::uint64_t>(sample) << 16) | static_cast<std::uint64_t>(camera));
+  // uniform on the corners that keep the square inside: [0, side - size]
+  auto corner = [&](std::int64_t side) {
+    const std::int64_t places = side - size + 1;
+    return std::min<std::int64_t>(
+        places - 1, static_cast<std::int64_t>(rng.uniform_double() * static_cast<double>(places)));
+  };
+  OcclusionSquare s;
+  s.size = size;
+  s.x = corner(width);
+  s.y = corner(height);
+  return s;
+}
+
+void occlude(std::vector<std::uint8_t>& images, const std::vector<std::int64_t>& samples,
+             std::int64_t cameras, std::int64_t height, std::int64_t width, std::int64_t size,
+             std::uint64_t seed) {
+  const std::int64_t plane = height * width;
+  if (cameras < 1 || height < 1 || width < 1 ||
+      static_cast<std::int64_t>(images.size()) !=
+          static_cast<std::int64_t>(samples.size()) * cameras * plane)
+    throw std::invalid_argument("occlude: " + std::to_string(images.size()) + " bytes for " +
+                                std::to_string(samples.size()) + " samples of " +
+                                std::to_string(cameras) + " cameras of " + std::to_string(width) +
+                                "x" + std::to_string(height) +
+                                "; expected samples * cameras * "
+                                "height * width");
+  for (std::size_t i = 0; i < samples.size(); ++i)
+    for (std::int64_t c = 0; c < cameras; ++c) {
+      const OcclusionSquare s = occlusion_square(seed, samples[i], c, width, height, size);
+      std::uint8_t* img = images.data() + (static_cast<std::int64_t>(i) * cameras + c) * plane;
+      for (std::int64_t r = s.y; r < s.y + s.size; ++r)
+        std::fill(img + r * width + s.x, img + r * width + s.x + s.size, std::uint8_t{255});
+    }
+}
+
+}  // namespace ropes::eval

@@ -1,0 +1,110 @@
+#include "test_data.hpp"
+
+#include <ropes_nn/sha256.hpp>
+#include <ropes_sim/dataset_config.hpp>
+#include <ropes_sim/dataset_generator.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+namespace ropes::eval::tools {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string read_text(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  if (!in)
+    throw std::invalid_argument(p.string() + ": cannot be opened");
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+nlohmann::json read_json(const fs::path& p) {
+  const nlohmann::json j = nlohmann::json::parse(read_text(p), nullptr, false);
+  if (j.is_discarded())
+    throw std::invalid_argument(p.string() + ": not valid JSON");
+  return j;
+}
+
+fs::path installed_config(const std::string& name) {
+  const fs::path p = fs::path(ROPES_SIM_DATASETS_DIR) / (name + ".json");
+  return fs::is_regular_file(p) ? p : fs::path();
+}
+
+}  // namespace
+
+std::string suite_config_name(const std::string& train_config, const std::string& distribution) {
+  // <preset>-<setting>: the setting without "_causal" is the camera rig's
+  const auto dash = train_config.rfind('-');
+  const std::string preset = dash == std::string::npos ? "" : train_config.substr(0, dash + 1);
+  std::string setting = dash == std::string::npos ? train_config : train_config.substr(dash + 1);
+  if (distribution == "id")
+    return train_config;
+  const auto causal = setting.find("_causal");
+  if (causal != std::string::npos)
+    setting.erase(causal);
+  if (setting != "2c")  // the paper defines OOD and causal test sets for two cameras only
+    return "";
+  const std::string name = preset + setting + (distribution == "ood" ? "_ood" : "_causal");
+  return installed_config(name).empty() ? "" : name;
+}
+
+TestData ensure_test_data(const TestDataRequest& request) {
+  const nlohmann::json run = read_json(request.run_dir / "run.json");
+  const fs::path train_dir = run.value("data_dir", "");
+  const fs::path manifest = train_dir / "manifest.json";
+  if (train_dir.empty() || !fs::is_regular_file(manifest))
+    throw std::invalid_argument(
+        (request.run_dir / "run.json").string() + ": its training set '" + train_dir.string() +
+        "' has no manifest.json; the suites take their configs from it (or pass --data DIR)");
+  const nlohmann::json meta = read_json(manifest).value("metadata", nlohmann::json::object());
+  const std::string train_config =
+      meta.contains("config") && meta["config"].is_object() ? meta["config"].value("name", "") : "";
+  const std::string name = suite_config_name(train_config, request.distribution);
+  if (name.empty())
+    throw std::invalid_argument("no " + request.distribution + " test set is defined for '" +
+                                train_config + "'");
+  const fs::path file = installed_config(name);
+  if (file.empty())
+    throw std::invalid_argument(manifest.string() + ": the training set's config '" + train_config +
+                                "' is not an installed ropes_sim config; generate a test set "
+                                "with ropes-generate and pass it with --data DIR");
+  sim::DatasetConfig config = sim::DatasetConfig::load(file);
+  // the test set shows the robot as the training set did: the same rig and image size
+  const nlohmann::json ours = nlohmann::json::parse(config.to_json());
+  for (const char* field : {"rig", "image"})
+    if (ours.value(field, nlohmann::json()) != meta["config"].value(field, nlohmann::json()))
+      throw std::invalid_argument(manifest.string() + ": the training set's " + field +
+                                  " differs from the installed config " + file.string() +
+                                  "'s; pass a test set with --data DIR");
+  config.anchors = std::max(config.anchors, request.min_observational);
+  const std::string identity = config.to_json() + read_text(config.distribution);
+  const std::string key = nn::sha256_hex(identity.data(), identity.size()).substr(0, 12);
+  TestData out;
+  out.config_name = name;
+  out.dir = request.cache / (name + "-seed" + std::to_string(request.seed) + "-" + key);
+  sim::GenerateOptions options;
+  options.out = out.dir;
+  options.seed = request.seed;
+  options.threads = request.threads;
+  if (request.log)
+    options.progress = [&](int done, int total, const std::string&) {
+      request.log("generating " + name + " (seed " + std::to_string(request.seed) + "): shard " +
+                  std::to_string(done) + "/" + std::to_string(total));
+    };
+  fs::create_directories(request.cache);
+  const sim::GenerateResult result = sim::generate_dataset(config, options);
+  if (!result.complete)
+    throw std::runtime_error(out.dir.string() + ": the test set is not complete after generation");
+  out.shards_written = result.shards_written;
+  return out;
+}
+
+}  // namespace ropes::eval::tools

@@ -1,0 +1,45 @@
+#pragma once
+// The test data of ropes-eval's suites: the dataset a suite needs, generated through
+// ropes_sim's generator into a cache directory and found there the next time.
+//
+// The cache entry of a dataset is CACHE/<config name>-seed<S>-<12 hex digits>, the digits
+// those of the SHA-256 of the config as the manifest records it plus the distribution file's
+// bytes: another config, distribution or seed is another entry, and the generator's own
+// resume (shard markers, generation.json) makes a complete entry cost nothing to reuse and
+// an interrupted one continue where it stopped.
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <string>
+
+namespace ropes::eval::tools {
+
+/// Which test set: the training distribution (id), the paper's OOD observational table with
+/// the ID interventions (ood), or the causal SEM over the joints (causal).
+struct TestDataRequest {
+  std::filesystem::path run_dir;    // the run whose training set names the config
+  std::string distribution = "id";  // id, ood or causal
+  std::int64_t min_observational = 0;
+  std::uint64_t seed = 0;  // the test set's seed (not the training set's)
+  std::filesystem::path cache;
+  int threads = 1;
+  std::function<void(const std::string&)> log;  // progress lines; may be empty
+};
+
+struct TestData {
+  std::filesystem::path dir;
+  std::string config_name;          // e.g. small-2c_ood
+  std::int64_t shards_written = 0;  // by this call (0: the cache had it)
+};
+
+/// The dataset config a suite uses for a run trained on `train_config` (e.g. small-2c):
+/// id -> small-2c, ood -> small-2c_ood, causal -> small-2c_causal. Empty when the paper
+/// defines no such test set for the setting (1C has one distribution: no ood, no causal).
+std::string suite_config_name(const std::string& train_config, const std::string& distribution);
+
+/// Generates (or finds) the test set. Throws std::invalid_argument naming the run's training
+/// set when its config is not an installed one or the installed one has another rig or image
+/// size than the training set; errors of generate_dataset pass through.
+TestData ensure_test_data(const TestDataRequest& request);
+
+}  // namespace ropes::eval::tools
