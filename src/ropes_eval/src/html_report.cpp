@@ -464,16 +464,24 @@ std::string html_report(const EvaluationReport& report, const fs::path& run_dir,
   std::string line;
   while (std::getline(in, line)) {
     const nlohmann::json m = nlohmann::json::parse(line, nullptr, false);
-    if (!m.is_object() || !m.contains("stage") || !m.contains("step") || !m.contains("loss") ||
-        !m["loss"].is_number() || !m["step"].is_number())
+    if (!m.is_object() || !m.contains("stage") || !m["stage"].is_string())
       continue;
-    const std::string stage = m["stage"].is_string() ? m["stage"].get<std::string>() : "?";
-    const std::string model =
-        m.contains("model") && m["model"].is_string() ? m["model"].get<std::string>() : stage;
-    Series& s = curves[stage][model];
+    const std::string stage = m["stage"].get<std::string>();
+    // AE1 and AE2 log a loss by step; an LDR its held-out loss by epoch
+    const bool by_step =
+        m.contains("step") && m["step"].is_number() && m.contains("loss") && m["loss"].is_number();
+    const bool by_epoch = m.contains("epoch") && m["epoch"].is_number() &&
+                          m.contains("held_out_loss") && m["held_out_loss"].is_number();
+    if (!by_step && !by_epoch)
+      continue;
+    std::string model = stage;
+    for (const char* key : {"model", "joint"})
+      if (m.contains(key) && m[key].is_string())
+        model = m[key].get<std::string>();
+    Series& s = curves[by_step ? stage : stage + " held-out"][model];
     s.name = model;
-    s.x.push_back(m["step"].get<double>());
-    s.y.push_back(m["loss"].get<double>());
+    s.x.push_back(m[by_step ? "step" : "epoch"].get<double>());
+    s.y.push_back(m[by_step ? "loss" : "held_out_loss"].get<double>());
   }
   if (curves.empty())
     h << "<p>No metrics.jsonl in the run directory.</p>\n";
@@ -482,7 +490,8 @@ std::string html_report(const EvaluationReport& report, const fs::path& run_dir,
     std::vector<Series> list;
     for (const auto& [name, s] : models)
       list.push_back(s);
-    h << line_plot(list, stage + " loss", "step", "loss", true, "plot curve");
+    const bool epochs = stage.find("held-out") != std::string::npos;
+    h << line_plot(list, stage + " loss", epochs ? "epoch" : "step", "loss", true, "plot curve");
   }
   h << "</div>\n";
 

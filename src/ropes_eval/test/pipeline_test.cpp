@@ -105,7 +105,8 @@ const GoldenMetric kGoldenMetrics[] = {{"ropes", "mcc", 0, 0.135800377},
                                        {"pca_of_code", "mse", 1, 0.474884494},
                                        {"pca_of_code", "mse", 2, 0.486550012}};
 
-const std::string kGenerate = ROPES_GENERATE_EXE, kTrain = ROPES_TRAIN_EXE, kEval = ROPES_EVAL_EXE;
+const std::string kGenerate = ROPES_GENERATE_EXE, kTrain = ROPES_TRAIN_EXE, kEval = ROPES_EVAL_EXE,
+                  kRun = ROPES_RUN_EXE;
 
 class Pipeline : public ::testing::Test {
  protected:
@@ -589,4 +590,118 @@ TEST_F(Pipeline, ReportOpensInHeadlessChromiumAndShowsItsPlots) {
   const Output bad = run("/usr/bin/python3 " + std::string(ROPES_EVAL_TEST_DIR) +
                          "/report_screenshot_check.py " + (dir_ / "hidden.png").string());
   EXPECT_NE(bad.rc, 0) << bad.text;
+}
+
+// ropes-run: generate -> train -> evaluate -> report in one command. Killed inside stage 2,
+// run again it keeps stage 1, resumes the training to the bytes of an uninterrupted
+// ropes-train on the same data, evaluates and reports; a third run redoes nothing and prints
+// the same table; the same directory with another seed is refused, naming the seed
+TEST_F(Pipeline, RopesRunResumesInsideItsStagesAndEndsWithTheTable) {
+  const fs::path out = dir_ / "ropes_run", whole = dir_ / "ropes_run_whole";
+  ASSERT_EQ(train(whole.string()).rc, 0);  // tiny-1c seed 0 is ropes-run's training set
+  const std::vector<std::string> args = {kRun,
+                                         "1c-tiny",
+                                         "--out",
+                                         out.string(),
+                                         "--threads",
+                                         "2",
+                                         "--progress",
+                                         "lines",
+                                         "--repeats",
+                                         "2",
+                                         "--calibration-samples",
+                                         "20",
+                                         "--test-samples",
+                                         "20",
+                                         "--supervised",
+                                         "100"};
+  int fds[2];
+  ASSERT_EQ(::pipe(fds), 0);
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    ::dup2(fds[1], 1);
+    ::dup2(fds[1], 2);
+    ::close(fds[0]);
+    std::vector<char*> argv;
+    for (const std::string& a : args)
+      argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    ::execv(kRun.c_str(), argv.data());
+    ::_exit(127);
+  }
+  ::close(fds[1]);
+  std::string seen;
+  char c;
+  bool sent = false;
+  while (::read(fds[0], &c, 1) == 1) {
+    seen += c;
+    if (c == '\n' && !sent &&
+        seen.find("checkpoint ae2 panda_joint4 step 100") != std::string::npos) {
+      ::kill(pid, SIGKILL);
+      sent = true;
+    }
+  }
+  ::close(fds[0]);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  ASSERT_TRUE(sent) << seen;
+  EXPECT_NE(seen.find("ropes-run [1/3 generate"), std::string::npos) << seen;
+
+  std::string command;
+  for (const std::string& a : args)
+    command += a + " ";
+  const Output second = run(command);
+  ASSERT_EQ(second.rc, 0) << second.text;
+  EXPECT_NE(second.text.find("ropes-run [1/3 generate"), std::string::npos) << second.text;
+  EXPECT_NE(second.text.find("finished before: " + (out / "train-data").string()),
+            std::string::npos)
+      << second.text;
+  EXPECT_EQ(second.text.find("ae1 step"), std::string::npos) << "AE1 trained again";
+  for (const char* f : kWeights)
+    EXPECT_EQ(bytes_of(whole / f), bytes_of(out / "run" / f)) << f << " differs after the resume";
+  // it ends with the per-joint table beside the paper's numbers and the report's path
+  EXPECT_NE(second.text.find("| panda_joint6 |"), std::string::npos) << second.text;
+  EXPECT_NE(second.text.find("paper MCC"), std::string::npos) << second.text;
+  const std::string report_line = "report: " + (out / "report" / "report.html").string();
+  EXPECT_NE(second.text.find(report_line), std::string::npos) << second.text;
+  EXPECT_TRUE(fs::exists(out / "report" / "report.html"));
+  EXPECT_TRUE(fs::exists(out / "report" / "results.md"));
+
+  const Output third = run(command);
+  ASSERT_EQ(third.rc, 0) << third.text;
+  EXPECT_NE(third.text.find("[3/3 evaluate"), std::string::npos) << third.text;
+  EXPECT_EQ(third.text.find("evaluating"), std::string::npos) << "evaluated again:\n" << third.text;
+  const std::string table = second.text.substr(second.text.find("ropes-eval: 1c-tiny"));
+  EXPECT_NE(third.text.find(table), std::string::npos) << third.text;
+
+  const Output other = run(command + "--seed 3");
+  EXPECT_EQ(other.rc, 1) << other.text;
+  EXPECT_NE(other.text.find("this directory holds a run with another seed (0, now 3)"),
+            std::string::npos)
+      << other.text;
+}
+
+// The `small` 1C preset end to end (label `slow`, about 11 minutes on 2 cores): `ropes-run
+// 1c-small` with seed 0, the id suite by the paper's protocol, every joint's mean MCC at or
+// above the floor measured and reported in the ropes_crl issue (src/ropes_crl/README.md,
+// Results, three training seeds by this protocol: joint 2 0.978 / 0.959 / 0.980, joint 4
+// 0.950 / 0.943 / 0.928, joint 6 0.802 / 0.794 / 0.753). The floors are each joint's lowest
+// seed; the issue's target of 0.90 is met on joints 2 and 4 and not on joint 6, whose floor
+// is therefore below it. Prints the measured values.
+TEST_F(Pipeline, SmallPresetOneCameraReachesTheMeasuredMcc) {
+  const fs::path out = dir_ / "small_1c";
+  const Output r = run(kRun + " 1c-small --out " + out.string() +
+                       " --threads 2 --progress lines --suite id --supervised none");
+  ASSERT_EQ(r.rc, 0) << r.text.substr(r.text.size() > 4000 ? r.text.size() - 4000 : 0);
+  const nlohmann::json results = json_of(out / "report" / "results.json");
+  const nlohmann::json& ropes = results["suites"][0]["results"]["methods"]["ropes"];
+  const std::vector<std::string> joints = {"panda_joint2", "panda_joint4", "panda_joint6"};
+  const double floors[] = {0.959, 0.928, 0.753};
+  for (std::size_t k = 0; k < joints.size(); ++k) {
+    const double mcc = ropes["mcc"][k].get<double>();
+    std::printf("small 1C seed 0: %s MCC %.3f ± %.3f (floor %.3f), MSE %.3f\n", joints[k].c_str(),
+                mcc, ropes["mcc_std"][k].get<double>(), floors[k], ropes["mse"][k].get<double>());
+    EXPECT_GE(mcc, floors[k]) << joints[k];
+  }
 }

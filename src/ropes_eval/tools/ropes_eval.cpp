@@ -18,7 +18,7 @@
 #include <string>
 #include <vector>
 
-#include "test_data.hpp"
+#include "suites.hpp"
 
 namespace {
 
@@ -67,196 +67,17 @@ options:
   --threads T               compute threads (default 1)
 )";
 
-struct UsageError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
-
-template <class T>
-T parse_number(const std::string& flag, const std::string& text) {
-  T value{};
-  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
-  if (ec != std::errc() || end != text.data() + text.size())
-    throw UsageError(flag + " is '" + text + "'; expected a number");
-  return value;
-}
-
-void write_text(const fs::path& path, const std::string& text) {
-  ropes::nn::write_file_atomically(path, reinterpret_cast<const std::uint8_t*>(text.data()),
-                                   text.size());
-}
-
-std::vector<std::string> split_list(const std::string& flag, const std::string& text) {
-  std::vector<std::string> out;
-  std::size_t start = 0;
-  while (start <= text.size()) {
-    const std::size_t comma = text.find(',', start);
-    const std::string item =
-        text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
-    if (item.empty())
-      throw UsageError(flag + " is '" + text + "'; expected a comma-separated list");
-    out.push_back(item);
-    if (comma == std::string::npos)
-      break;
-    start = comma + 1;
-  }
-  return out;
-}
-
-fs::path default_cache() {
-  if (const char* c = std::getenv("ROPES_DATA_CACHE"); c != nullptr && *c != 0)
-    return c;
-  if (const char* x = std::getenv("XDG_CACHE_HOME"); x != nullptr && *x != 0)
-    return fs::path(x) / "ropes" / "test-data";
-  if (const char* h = std::getenv("HOME"); h != nullptr && *h != 0)
-    return fs::path(h) / ".cache" / "ropes" / "test-data";
-  throw UsageError("no --data-cache, and neither ROPES_DATA_CACHE, XDG_CACHE_HOME nor HOME is set");
-}
-
-struct SuiteArgs {
-  std::vector<std::string> suites;
-  fs::path cache;
-  bool have_test_seed = false;
-  std::uint64_t test_seed = 0;
-  std::vector<std::int64_t> occlusion_sizes = {16, 32, 64};
-  std::vector<double> supervised = {0.01, 0.05, 0.10, 1.0};  // fractions of labelled rows
-  std::int64_t supervised_max_steps = 0;
-};
-
-// --suite: every suite asked for, its test set generated or found in the cache
-int run_suites(const std::string& run_dir, const std::string& data, const std::string& out,
-               int threads, ropes::eval::RunEvaluationOptions options, const SuiteArgs& args) {
-  namespace tools = ropes::eval::tools;
-  std::set<std::string> wanted;
-  for (const std::string& s : args.suites) {
-    if (s != "id" && s != "ood" && s != "causal" && s != "occlusion")
-      throw UsageError("--suite names '" + s + "'; expected id, ood, causal or occlusion");
-    wanted.insert(s);
-  }
-  const fs::path report_dir = out.empty() ? fs::path(run_dir) / "report" : fs::path(out);
-  const fs::path cache = args.cache.empty() ? default_cache() : args.cache;
-  // the training set's seed: the test sets default to the next one
-  std::uint64_t test_seed = args.test_seed;
-  if (!args.have_test_seed) {
-    std::ifstream in(fs::path(run_dir) / "run.json");
-    const nlohmann::json run = nlohmann::json::parse(in, nullptr, false);
-    const fs::path manifest =
-        fs::path(run.is_object() ? run.value("data_dir", "") : "") / "manifest.json";
-    std::ifstream m(manifest);
-    const nlohmann::json j = nlohmann::json::parse(m, nullptr, false);
-    test_seed = (j.is_object() && j.contains("/metadata/seed"_json_pointer)
-                     ? j["/metadata/seed"_json_pointer].get<std::uint64_t>()
-                     : 0) +
-                1;
-  }
-  ropes::eval::EvaluationReport report;
-  // the supervised baselines, trained once and scored on every suite
-  std::vector<ropes::eval::SupervisedEncoder> supervised;
-  for (double f : args.supervised) {
-    ropes::eval::SupervisedOptions so;
-    so.seed = options.seed;
-    so.max_steps = args.supervised_max_steps;
-    supervised.push_back(ropes::eval::SupervisedEncoder::train(run_dir, f, so));
-    const ropes::eval::SupervisedEncoder& e = supervised.back();
-    report.supervised.push_back({f, e.labels(), e.steps(), e.final_loss()});
-    std::cout << "ropes-eval: supervised baseline on " << e.labels() << " labelled samples ("
-              << 100.0 * f << " %): " << e.steps() << " steps, last epoch's loss " << e.final_loss()
-              << std::endl;
-  }
-  for (const ropes::eval::SupervisedEncoder& e : supervised)
-    options.supervised.push_back(&e);
-  std::vector<std::string> distributions;
-  for (const char* d : {"id", "ood", "causal"})
-    if (wanted.count(d) != 0)
-      distributions.push_back(d);
-  const bool occlusion = wanted.count("occlusion") != 0;
-  if (distributions.empty())
-    distributions.push_back("id");
-  fs::path id_data;
-  for (const std::string& d : distributions) {
-    tools::TestData test;
-    if (d == "id" && !data.empty()) {
-      test.dir = data;
-      test.config_name = "--data";
-    } else {
-      tools::TestDataRequest request;
-      request.run_dir = run_dir;
-      request.distribution = d;
-      request.min_observational = options.calibration_samples + options.test_samples;
-      request.seed = test_seed;
-      request.cache = cache;
-      request.threads = threads;
-      request.log = [](const std::string& line) {
-        std::cout << "ropes-eval: " << line << std::endl;
-      };
-      try {
-        test = tools::ensure_test_data(request);
-      } catch (const std::invalid_argument& e) {
-        if (d == "id")
-          throw;
-        report.notes.push_back(d + ": " + e.what() +
-                               " (the paper defines OOD and causal test sets for two cameras)");
-        std::cout << "ropes-eval: " << report.notes.back() << std::endl;
-        continue;
-      }
-      std::cout << "ropes-eval: " << d << " test set " << test.dir.string() << " ("
-                << (test.shards_written == 0
-                        ? "from the cache"
-                        : std::to_string(test.shards_written) + " shards generated")
-                << ")" << std::endl;
-    }
-    if (d == "id")
-      id_data = test.dir;
-    std::vector<std::int64_t> sizes = {0};
-    if (occlusion)
-      sizes.insert(sizes.end(), args.occlusion_sizes.begin(), args.occlusion_sizes.end());
-    for (std::int64_t size : sizes) {
-      ropes::eval::RunEvaluationOptions o = options;
-      o.occlusion = size;
-      o.occlusion_seed = options.seed;
-      // the diagnostics' MLP probe: on the clean id suite only
-      if (!(d == "id" && size == 0))
-        o.probe_steps = 0;
-      ropes::eval::SuiteResult s;
-      s.name = d + (size > 0 ? " occlusion " + std::to_string(size) : "");
-      s.distribution = d;
-      s.occlusion = size;
-      s.data_config = test.config_name;
-      std::cout << "ropes-eval: evaluating " << s.name << std::endl;
-      s.evaluation = ropes::eval::evaluate_run(run_dir, test.dir, o);
-      report.suites.push_back(std::move(s));
-    }
-  }
-  const std::string setting = report.suites.front().evaluation.setting;
-  const nlohmann::json paper = ropes::eval::paper_suite_numbers(setting, options.paper_results);
-  report.paper_appendix = paper["appendix"];
-  report.paper_table1_occlusion = paper["table1_occlusion"];
-  report.paper_robopepp = paper["robopepp"];
-  fs::create_directories(report_dir);
-  write_text(report_dir / "results.json", report.to_json().dump(2) + "\n");
-  write_text(report_dir / "results.md", report.markdown());
-  // report.html: the occlusion figure at the middle size asked (the paper's 32 px by default)
-  if (!id_data.empty()) {
-    std::int64_t figure = 32;
-    if (occlusion && !args.occlusion_sizes.empty())
-      figure = args.occlusion_sizes[args.occlusion_sizes.size() / 2];
-    const ropes::eval::ReportImages images =
-        ropes::eval::collect_report_images(run_dir, id_data, figure, options.seed);
-    write_text(report_dir / "report.html", ropes::eval::html_report(report, run_dir, images));
-  }
-  const ropes::eval::SuiteResult* id = report.find("id");
-  if (id != nullptr)
-    write_text(fs::path(run_dir) / "calibration.json", id->evaluation.calibration.dump(2) + "\n");
-  std::cout << report.table() << "results: " << (report_dir / "results.json").string() << " and "
-            << (report_dir / "results.md").string()
-            << "\nreport: " << (report_dir / "report.html").string() << "\n";
-  return 0;
-}
+using ropes::eval::tools::parse_number;
+using ropes::eval::tools::split_list;
+using ropes::eval::tools::UsageError;
+using ropes::eval::tools::write_text;
+namespace tools = ropes::eval::tools;
 
 int run(int argc, char** argv) {
   std::string run_dir, data, out;
   int threads = 1;
   ropes::eval::RunEvaluationOptions options;
-  SuiteArgs suite_args;
+  tools::SuiteArgs suite_args;
   for (int i = 1; i < argc; ++i) {
     const std::string flag = argv[i];
     if (flag == "--help" || flag == "-h") {
@@ -284,9 +105,10 @@ int run(int argc, char** argv) {
       options.probe_steps = parse_number<std::int64_t>(flag, value);
     else if (flag == "--threads")
       threads = parse_number<int>(flag, value);
-    else if (flag == "--suite")
+    else if (flag == "--suite") {
       suite_args.suites = split_list(flag, value);
-    else if (flag == "--data-cache")
+      tools::check_suites(suite_args.suites);
+    } else if (flag == "--data-cache")
       suite_args.cache = value;
     else if (flag == "--test-seed") {
       suite_args.test_seed = parse_number<std::uint64_t>(flag, value);
@@ -324,8 +146,16 @@ int run(int argc, char** argv) {
   if (threads < 1 || threads > 256)
     throw UsageError("--threads is " + std::to_string(threads) + "; expected 1..256");
   ropes::nn::set_num_threads(threads);
-  if (!suite_args.suites.empty())
-    return run_suites(run_dir, data, out, threads, options, suite_args);
+  if (!suite_args.suites.empty()) {
+    const tools::SuiteOutcome outcome = tools::run_suites(
+        run_dir, data, out, threads, options, suite_args,
+        [](const std::string& line) { std::cout << "ropes-eval: " << line << std::endl; });
+    std::cout << outcome.report.table()
+              << "results: " << (outcome.report_dir / "results.json").string() << " and "
+              << (outcome.report_dir / "results.md").string()
+              << "\nreport: " << (outcome.report_dir / "report.html").string() << "\n";
+    return 0;
+  }
   const ropes::eval::RunEvaluation ev = ropes::eval::evaluate_run(run_dir, data, options);
   const fs::path results = out.empty() ? fs::path(run_dir) / "results.json" : fs::path(out);
   write_text(results, ev.to_json().dump(2) + "\n");

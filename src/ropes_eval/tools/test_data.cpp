@@ -40,6 +40,17 @@ fs::path installed_config(const std::string& name) {
 
 }  // namespace
 
+fs::path installed_dataset_config(const std::string& name_or_path) {
+  if (fs::is_regular_file(name_or_path))
+    return name_or_path;
+  const fs::path p = installed_config(name_or_path);
+  if (p.empty())
+    throw std::invalid_argument("dataset config '" + name_or_path +
+                                "' is neither a file nor an installed ropes_sim config (in " +
+                                std::string(ROPES_SIM_DATASETS_DIR) + ")");
+  return p;
+}
+
 std::string suite_config_name(const std::string& train_config, const std::string& distribution) {
   // <preset>-<setting>: the setting without "_causal" is the camera rig's
   const auto dash = train_config.rfind('-');

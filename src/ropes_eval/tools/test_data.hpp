@@ -37,6 +37,10 @@ struct TestData {
 /// defines no such test set for the setting (1C has one distribution: no ood, no causal).
 std::string suite_config_name(const std::string& train_config, const std::string& distribution);
 
+/// The dataset config `name_or_path`: a file, or the installed ropes_sim config of that
+/// name. Throws std::invalid_argument naming it when it is neither.
+std::filesystem::path installed_dataset_config(const std::string& name_or_path);
+
 /// Generates (or finds) the test set. Throws std::invalid_argument naming the run's training
 /// set when its config is not an installed one or the installed one has another rig or image
 /// size than the training set; errors of generate_dataset pass through.

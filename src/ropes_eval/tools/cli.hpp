@@ -1,0 +1,52 @@
+#pragma once
+// Command-line helpers shared by ropes-eval and ropes-run (private to ropes_eval's tools).
+#include <ropes_nn/npy.hpp>
+
+#include <charconv>
+#include <cstdint>
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace ropes::eval::tools {
+
+namespace fs = std::filesystem;
+
+/// a usage error: the tools print it and exit 2
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+template <class T>
+T parse_number(const std::string& flag, const std::string& text) {
+  T value{};
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (ec != std::errc() || end != text.data() + text.size())
+    throw UsageError(flag + " is '" + text + "'; expected a number");
+  return value;
+}
+
+inline void write_text(const fs::path& path, const std::string& text) {
+  ropes::nn::write_file_atomically(path, reinterpret_cast<const std::uint8_t*>(text.data()),
+                                   text.size());
+}
+
+inline std::vector<std::string> split_list(const std::string& flag, const std::string& text) {
+  std::vector<std::string> out;
+  std::size_t start = 0;
+  while (start <= text.size()) {
+    const std::size_t comma = text.find(',', start);
+    const std::string item =
+        text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+    if (item.empty())
+      throw UsageError(flag + " is '" + text + "'; expected a comma-separated list");
+    out.push_back(item);
+    if (comma == std::string::npos)
+      break;
+    start = comma + 1;
+  }
+  return out;
+}
+
+}  // namespace ropes::eval::tools

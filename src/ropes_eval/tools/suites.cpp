@@ -1,0 +1,177 @@
+#include "suites.hpp"
+
+#include <ropes_eval/html_report.hpp>
+#include <ropes_eval/supervised.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <cstdlib>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include "test_data.hpp"
+
+namespace ropes::eval::tools {
+
+void check_suites(const std::vector<std::string>& suites) {
+  for (const std::string& s : suites)
+    if (s != "id" && s != "ood" && s != "causal" && s != "occlusion")
+      throw UsageError("--suite names '" + s + "'; expected id, ood, causal or occlusion");
+}
+
+fs::path default_cache() {
+  if (const char* c = std::getenv("ROPES_DATA_CACHE"); c != nullptr && *c != 0)
+    return c;
+  if (const char* x = std::getenv("XDG_CACHE_HOME"); x != nullptr && *x != 0)
+    return fs::path(x) / "ropes" / "test-data";
+  if (const char* h = std::getenv("HOME"); h != nullptr && *h != 0)
+    return fs::path(h) / ".cache" / "ropes" / "test-data";
+  throw UsageError("no --data-cache, and neither ROPES_DATA_CACHE, XDG_CACHE_HOME nor HOME is set");
+}
+
+SuiteOutcome run_suites(const std::string& run_dir, const std::string& data, const std::string& out,
+                        int threads, ropes::eval::RunEvaluationOptions options,
+                        const SuiteArgs& args, const std::function<void(const std::string&)>& log) {
+  std::set<std::string> wanted;
+  for (const std::string& s : args.suites) {
+    if (s != "id" && s != "ood" && s != "causal" && s != "occlusion")
+      throw UsageError("--suite names '" + s + "'; expected id, ood, causal or occlusion");
+    wanted.insert(s);
+  }
+  const fs::path report_dir = out.empty() ? fs::path(run_dir) / "report" : fs::path(out);
+  const fs::path cache = args.cache.empty() ? default_cache() : args.cache;
+  // the training set's seed: the test sets default to the next one
+  ropes::eval::EvaluationReport report;
+  // the run's image side: occlusion squares larger than the image are left out with a note
+  std::int64_t image_side = 0;
+  {
+    std::ifstream in(fs::path(run_dir) / "run.json");
+    const nlohmann::json run = nlohmann::json::parse(in, nullptr, false);
+    const nlohmann::json::json_pointer p("/config/dataset/image_size");
+    if (run.is_object() && run.contains(p) && run[p].is_number_integer())
+      image_side = run[p].get<std::int64_t>();
+  }
+  std::vector<std::int64_t> occlusion_sizes;
+  for (std::int64_t size : args.occlusion_sizes)
+    if (image_side > 0 && size > image_side)
+      report.notes.push_back("occlusion " + std::to_string(size) + ": larger than the run's " +
+                             std::to_string(image_side) + " px images");
+    else
+      occlusion_sizes.push_back(size);
+  std::uint64_t test_seed = args.test_seed;
+  if (!args.have_test_seed) {
+    std::ifstream in(fs::path(run_dir) / "run.json");
+    const nlohmann::json run = nlohmann::json::parse(in, nullptr, false);
+    const fs::path manifest =
+        fs::path(run.is_object() ? run.value("data_dir", "") : "") / "manifest.json";
+    std::ifstream m(manifest);
+    const nlohmann::json j = nlohmann::json::parse(m, nullptr, false);
+    test_seed = (j.is_object() && j.contains("/metadata/seed"_json_pointer)
+                     ? j["/metadata/seed"_json_pointer].get<std::uint64_t>()
+                     : 0) +
+                1;
+  }
+  // the supervised baselines, trained once and scored on every suite
+  std::vector<ropes::eval::SupervisedEncoder> supervised;
+  for (double f : args.supervised) {
+    ropes::eval::SupervisedOptions so;
+    so.seed = options.seed;
+    so.max_steps = args.supervised_max_steps;
+    supervised.push_back(ropes::eval::SupervisedEncoder::train(run_dir, f, so));
+    const ropes::eval::SupervisedEncoder& e = supervised.back();
+    report.supervised.push_back({f, e.labels(), e.steps(), e.final_loss()});
+    std::ostringstream line;
+    line << "supervised baseline on " << e.labels() << " labelled samples (" << 100.0 * f
+         << " %): " << e.steps() << " steps, last epoch's loss " << e.final_loss();
+    log(line.str());
+  }
+  for (const ropes::eval::SupervisedEncoder& e : supervised)
+    options.supervised.push_back(&e);
+  std::vector<std::string> distributions;
+  for (const char* d : {"id", "ood", "causal"})
+    if (wanted.count(d) != 0)
+      distributions.push_back(d);
+  const bool occlusion = wanted.count("occlusion") != 0;
+  if (distributions.empty())
+    distributions.push_back("id");
+  fs::path id_data;
+  for (const std::string& d : distributions) {
+    TestData test;
+    if (d == "id" && !data.empty()) {
+      test.dir = data;
+      test.config_name = "--data";
+    } else {
+      TestDataRequest request;
+      request.run_dir = run_dir;
+      request.distribution = d;
+      request.min_observational = options.calibration_samples + options.test_samples;
+      request.seed = test_seed;
+      request.cache = cache;
+      request.threads = threads;
+      request.log = log;
+      try {
+        test = ensure_test_data(request);
+      } catch (const std::invalid_argument& e) {
+        if (d == "id")
+          throw;
+        report.notes.push_back(d + ": " + e.what() +
+                               " (the paper defines OOD and causal test sets for two cameras)");
+        log(report.notes.back());
+        continue;
+      }
+      log(d + " test set " + test.dir.string() + " (" +
+          (test.shards_written == 0 ? std::string("from the cache")
+                                    : std::to_string(test.shards_written) + " shards generated") +
+          ")");
+    }
+    if (d == "id")
+      id_data = test.dir;
+    std::vector<std::int64_t> sizes = {0};
+    if (occlusion)
+      sizes.insert(sizes.end(), occlusion_sizes.begin(), occlusion_sizes.end());
+    for (std::int64_t size : sizes) {
+      ropes::eval::RunEvaluationOptions o = options;
+      o.occlusion = size;
+      o.occlusion_seed = options.seed;
+      // the diagnostics' MLP probe: on the clean id suite only
+      if (!(d == "id" && size == 0))
+        o.probe_steps = 0;
+      ropes::eval::SuiteResult s;
+      s.name = d + (size > 0 ? " occlusion " + std::to_string(size) : "");
+      s.distribution = d;
+      s.occlusion = size;
+      s.data_config = test.config_name;
+      log("evaluating " + s.name);
+      s.evaluation = ropes::eval::evaluate_run(run_dir, test.dir, o);
+      report.suites.push_back(std::move(s));
+    }
+  }
+  const std::string setting = report.suites.front().evaluation.setting;
+  const nlohmann::json paper = ropes::eval::paper_suite_numbers(setting, options.paper_results);
+  report.paper_appendix = paper["appendix"];
+  report.paper_table1_occlusion = paper["table1_occlusion"];
+  report.paper_robopepp = paper["robopepp"];
+  fs::create_directories(report_dir);
+  write_text(report_dir / "results.json", report.to_json().dump(2) + "\n");
+  write_text(report_dir / "results.md", report.markdown());
+  // report.html: the occlusion figure at the middle size asked (the paper's 32 px by default)
+  if (!id_data.empty()) {
+    std::int64_t figure = 32;
+    if (!occlusion_sizes.empty())
+      figure = occlusion_sizes[occlusion_sizes.size() / 2];
+    figure = image_side > 0 ? std::min(figure, image_side / 2) : figure;
+    const ropes::eval::ReportImages images =
+        ropes::eval::collect_report_images(run_dir, id_data, figure, options.seed);
+    write_text(report_dir / "report.html", ropes::eval::html_report(report, run_dir, images));
+  }
+  const ropes::eval::SuiteResult* id = report.find("id");
+  if (id != nullptr)
+    write_text(fs::path(run_dir) / "calibration.json", id->evaluation.calibration.dump(2) + "\n");
+  SuiteOutcome outcome;
+  outcome.report_dir = report_dir;
+  outcome.report = std::move(report);
+  return outcome;
+}
+
+}  // namespace ropes::eval::tools
