@@ -166,7 +166,8 @@ std::string EvaluationReport::markdown() const {
       }
       auto paper = [&](const std::string& c, const char* what) {
         const nlohmann::json::json_pointer p("/32/" + c + "/" + what);
-        return paper_table1_occlusion.is_object() && paper_table1_occlusion.contains(p)
+        return paper_table1_occlusion.is_object() && paper_table1_occlusion.contains(p) &&
+                       paper_table1_occlusion[p].is_number()
                    ? paper_table1_occlusion[p].get<double>()
                    : kNan;
       };
@@ -280,7 +281,10 @@ std::string EvaluationReport::markdown() const {
           out << "| RoboPEPP (the paper) | " << pct << " % |";
           for (const std::string& j : ev.joints) {
             const nlohmann::json& v = paper_robopepp[p];
-            out << " " << (v.contains(j) ? fmt(v[j].get<double>()) : std::string("--")) << " |";
+            out << " "
+                << (v.is_object() && v.contains(j) && v[j].is_number() ? fmt(v[j].get<double>())
+                                                                       : std::string("--"))
+                << " |";
           }
           out << "\n";
         }

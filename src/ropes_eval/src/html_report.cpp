@@ -25,9 +25,11 @@ using detail::fmt;
 
 namespace {
 
+// scatter points in blue; curves in colours that are neither blue nor the heat map's orange
+// (test/report_screenshot_check.py tells the plots apart by them)
 const char* const kInk = "#1f5fa8";
-const char* const kSeries[] = {"#1f5fa8", "#d1495b", "#2e933c", "#edae49",
-                               "#6b4e9b", "#00798c", "#8d6a9f", "#444444"};
+const char* const kSeries[] = {"#d1495b", "#2e933c", "#00798c", "#8c564b",
+                               "#c71585", "#808000", "#5a5a5a", "#b03060"};
 
 std::string escape(const std::string& s) {
   std::string out;
@@ -62,9 +64,15 @@ std::vector<double> ticks(double lo, double hi) {
                       : raw / mag < 3.5 ? 2 * mag
                       : raw / mag < 7.5 ? 5 * mag
                                         : 10 * mag;
+  // by index, at most a dozen: a span of a few ulps must not loop on v += step
   std::vector<double> t;
-  for (double v = std::ceil(lo / step) * step; v <= hi + 1e-9 * span; v += step)
+  const double first = std::ceil(lo / step);
+  for (int i = 0; i < 12; ++i) {
+    const double v = (first + i) * step;
+    if (v > hi + 1e-9 * span)
+      break;
     t.push_back(std::fabs(v) < 1e-12 * span ? 0.0 : v);
+  }
   return t;
 }
 
@@ -152,7 +160,8 @@ std::string scatter(const std::vector<double>& truth, const std::vector<double>&
         lo = std::min(lo, x);
         hi = std::max(hi, x);
       }
-  if (!(hi > lo)) {
+  // a range of (almost) one value gets a unit around it
+  if (!(hi - lo > 1e-9 * std::max({1.0, std::fabs(lo), std::fabs(hi)}))) {
     lo -= 1;
     hi += 1;
   }
@@ -189,13 +198,19 @@ std::string line_plot(const std::vector<Series>& series, const std::string& titl
         y0 = std::min(y0, s.y[i]);
         y1 = std::max(y1, s.y[i]);
       }
-  if (!(x1 > x0)) {
+  const auto flat = [](double a, double b) {
+    return !(b - a > 1e-9 * std::max({1.0, std::fabs(a), std::fabs(b)}));
+  };
+  if (flat(x0, x1)) {
     x0 = log_x ? x0 / 2 : x0 - 1;
     x1 = log_x ? x1 * 2 : x1 + 1;
   }
-  if (!(y1 > y0)) {
-    y0 = log_y ? y0 / 2 : y0 - 1;
-    y1 = log_y ? y1 * 2 : y1 + 1;
+  if (flat(y0, y1) && !log_y) {
+    y0 -= 1;
+    y1 += 1;
+  } else if (log_y && !(y1 > y0 * (1 + 1e-9))) {
+    y0 /= 2;
+    y1 *= 2;
   }
   if (!log_y) {
     const double pad = 0.05 * (y1 - y0);
@@ -228,7 +243,7 @@ std::string line_plot(const std::vector<Series>& series, const std::string& titl
   return s.str();
 }
 
-// a matrix as a heat map: white 0 to blue at the largest |value|, each cell's value written
+// a matrix as a heat map: white 0 to orange at the largest |value|, each cell's value written
 std::string heat_map(const std::vector<std::vector<double>>& m,
                      const std::vector<std::string>& rows, const std::string& title) {
   const std::size_t r = m.size(), c = r > 0 ? m[0].size() : 0;
@@ -251,8 +266,9 @@ std::string heat_map(const std::vector<std::vector<double>>& m,
       << "</text>";
     for (std::size_t j = 0; j < c; ++j) {
       const double v = std::isfinite(m[i][j]) ? std::fabs(m[i][j]) / (top > 0 ? top : 1) : 0;
-      const int red = static_cast<int>(255 - 224 * v), green = static_cast<int>(255 - 160 * v),
-                blue = static_cast<int>(255 - 87 * v);
+      // white to orange rgb(230, 120, 20)
+      const int red = static_cast<int>(255 - 25 * v), green = static_cast<int>(255 - 135 * v),
+                blue = static_cast<int>(255 - 235 * v);
       s << "<rect x=\"" << left + static_cast<int>(j) * cell << "\" y=\""
         << head + static_cast<int>(i) * cell << "\" width=\"" << cell << "\" height=\"" << cell
         << "\" fill=\"rgb(" << red << "," << green << "," << blue
@@ -310,7 +326,8 @@ ReportImages collect_report_images(const fs::path& run_dir, const fs::path& data
     std::memcpy(&a, anchors.data.data() + r * 8, 8);
     if (a == 0)
       anchor0.push_back(r);
-    if (g >= 0 && static_cast<std::size_t>(g) < regimes.size() && regimes[g]["joint"].is_null() &&
+    if (g >= 0 && static_cast<std::size_t>(g) < regimes.size() && regimes[g].is_object() &&
+        regimes[g].contains("joint") && regimes[g]["joint"].is_null() &&
         static_cast<std::int64_t>(observational.size()) < samples)
       observational.push_back(r);
   }
@@ -356,8 +373,10 @@ ReportImages collect_report_images(const fs::path& run_dir, const fs::path& data
     for (std::size_t k = 0; k < anchor0.size(); ++k) {
       std::int32_t g;
       std::memcpy(&g, regime.data.data() + anchor0[k] * 4, 4);
-      const std::string name = g >= 0 && static_cast<std::size_t>(g) < regimes.size()
-                                   ? regimes[g].value("name", std::to_string(g))
+      const std::string name = g >= 0 && static_cast<std::size_t>(g) < regimes.size() &&
+                                       regimes[g].is_object() && regimes[g].contains("name") &&
+                                       regimes[g]["name"].is_string()
+                                   ? regimes[g]["name"].get<std::string>()
                                    : std::to_string(g);
       out.regime_names.push_back(name);
       for (std::int64_t c = 0; c < cams; ++c)
@@ -403,7 +422,8 @@ std::string html_report(const EvaluationReport& report, const fs::path& run_dir,
       const std::string patch = s.occlusion > 0 ? std::to_string(s.occlusion) : "none";
       const nlohmann::json::json_pointer p("/" + s.distribution + "/" + patch + "/" + joints[k]);
       double paper = std::numeric_limits<double>::quiet_NaN();
-      if (report.paper_appendix.is_object() && report.paper_appendix.contains(p))
+      if (report.paper_appendix.is_object() && report.paper_appendix.contains(p) &&
+          report.paper_appendix[p].is_number())
         paper = report.paper_appendix[p].get<double>();
       else if (s.name == "id")
         paper = s.evaluation.paper_mse[k];
@@ -484,7 +504,8 @@ std::string html_report(const EvaluationReport& report, const fs::path& run_dir,
     s.y.push_back(m[by_step ? "loss" : "held_out_loss"].get<double>());
   }
   if (curves.empty())
-    h << "<p>No metrics.jsonl in the run directory.</p>\n";
+    h << "<p>No training curves: metrics.jsonl is missing from the run directory or holds no "
+         "losses.</p>\n";
   h << "<div class=\"row\">";
   for (const auto& [stage, models] : curves) {
     std::vector<Series> list;

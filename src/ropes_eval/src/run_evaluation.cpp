@@ -384,6 +384,11 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
   // the supervised baselines: angle estimates straight from Y
   std::vector<std::pair<std::string, Eigen::MatrixXd>> supervised;
   for (const SupervisedEncoder* s : options.supervised) {
+    if (s == nullptr || s->joints() != config.joints)
+      throw std::invalid_argument(
+          "evaluate_run: a supervised baseline " +
+          std::string(s == nullptr ? "is null" : "estimates other joints than the run's") +
+          "; train it on this run (SupervisedEncoder::train)");
     char name[48];
     std::snprintf(name, sizeof name, "supervised_%g%%", 100.0 * s->fraction());
     supervised.emplace_back(name, s->predict(y));

@@ -81,6 +81,9 @@ SupervisedEncoder SupervisedEncoder::train(const fs::path& run_dir, double fract
                               std::to_string(reader.rows()) +
                               ", C, 8, 8], the codes of every row of the training set");
   const std::int64_t rows = codes.shape[0], per = codes.shape[1] * codes.shape[2] * codes.shape[3];
+  if (rows < 2)
+    throw nn::FileFormatError((run_dir / "codes.npy").string() + ": " + std::to_string(rows) +
+                              " rows; the supervised baseline needs at least 2");
   const nlohmann::json& names = reader.metadata_at("/joint_names");
   const std::int64_t width = reader.column("angles").row_shape[0];
   std::vector<std::int64_t> column;
@@ -211,6 +214,10 @@ Eigen::MatrixXd SupervisedEncoder::predict(const Eigen::MatrixXd& codes) const {
                         state_->mean[static_cast<std::size_t>(k)];
   }
   return out;
+}
+
+const std::vector<std::string>& SupervisedEncoder::joints() const {
+  return state_->config.joints;
 }
 
 double SupervisedEncoder::fraction() const {

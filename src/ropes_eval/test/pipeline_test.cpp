@@ -64,6 +64,44 @@ std::vector<nlohmann::json> metrics_of(const fs::path& run) {
   return out;
 }
 
+// runs argv (argv[0] the executable) with stdout and stderr into a pipe until a line holding
+// `stop` appears, then SIGKILLs it; returns what it printed and whether the kill was sent
+struct Killed {
+  std::string seen;
+  bool sent = false;
+  int status = 0;
+};
+Killed run_until_killed(const std::vector<std::string>& args, const std::string& stop) {
+  Killed k;
+  int fds[2];
+  if (::pipe(fds) != 0)
+    return k;
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    ::dup2(fds[1], 1);
+    ::dup2(fds[1], 2);
+    ::close(fds[0]);
+    std::vector<char*> argv;
+    for (const std::string& a : args)
+      argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    ::execv(args[0].c_str(), argv.data());
+    ::_exit(127);
+  }
+  ::close(fds[1]);
+  char c;
+  while (::read(fds[0], &c, 1) == 1) {
+    k.seen += c;
+    if (c == '\n' && !k.sent && k.seen.find(stop) != std::string::npos) {
+      ::kill(pid, SIGKILL);
+      k.sent = true;
+    }
+  }
+  ::close(fds[0]);
+  ::waitpid(pid, &k.status, 0);
+  return k;
+}
+
 // see TinyRunIsDeterministicPinnedAndLearnsTheSparsityPattern
 constexpr double kGoldenAe1Loss = 0.113068044;
 constexpr double kGoldenAe2Loss = 0.0360004492;
@@ -250,34 +288,13 @@ TEST_F(Pipeline, KilledRunResumesToTheSameBytes) {
   const fs::path whole = dir_ / "whole", killed = dir_ / "killed";
   ASSERT_EQ(train(whole.string()).rc, 0);
 
-  int fds[2];
-  ASSERT_EQ(::pipe(fds), 0);
-  const pid_t pid = ::fork();
-  ASSERT_GE(pid, 0);
-  if (pid == 0) {
-    ::dup2(fds[1], 2);
-    ::close(fds[0]);
-    ::execl(kTrain.c_str(), kTrain.c_str(), "--config", "1c-tiny", "--data",
-            (dir_ / "data0").c_str(), "--out", killed.c_str(), "--threads", "2", "--progress",
-            "lines", static_cast<char*>(nullptr));
-    ::_exit(127);
-  }
-  ::close(fds[1]);
-  std::string seen, line;
-  char c;
-  bool sent = false;
-  while (::read(fds[0], &c, 1) == 1) {
-    seen += c;
-    if (c != '\n')
-      continue;
-    if (seen.find("checkpoint ae2 panda_joint4 step 100") != std::string::npos && !sent) {
-      ::kill(pid, SIGKILL);
-      sent = true;
-    }
-  }
-  ::close(fds[0]);
-  int status = 0;
-  ::waitpid(pid, &status, 0);
+  const Killed k =
+      run_until_killed({kTrain, "--config", "1c-tiny", "--data", (dir_ / "data0").string(), "--out",
+                        killed.string(), "--threads", "2", "--progress", "lines"},
+                       "checkpoint ae2 panda_joint4 step 100");
+  const std::string& seen = k.seen;
+  const bool sent = k.sent;
+  const int status = k.status;
   ASSERT_TRUE(sent) << seen;
   ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) << seen;
   EXPECT_FALSE(fs::exists(killed / "ae2.panda_joint4.safetensors"));
@@ -420,35 +437,7 @@ TEST_F(Pipeline, PaperPresetStartsCheckpointsAndResumes) {
                                          "--set",
                                          "log_every=1"};
   // runs ropes-train until a line holding `stop` appears, then SIGKILLs it; returns the log
-  auto run_until = [&](const std::string& stop) {
-    int fds[2];
-    EXPECT_EQ(::pipe(fds), 0);
-    const pid_t pid = ::fork();
-    if (pid == 0) {
-      ::dup2(fds[1], 2);
-      ::close(fds[0]);
-      std::vector<char*> argv;
-      for (const std::string& a : args)
-        argv.push_back(const_cast<char*>(a.c_str()));
-      argv.push_back(nullptr);
-      ::execv(kTrain.c_str(), argv.data());
-      ::_exit(127);
-    }
-    ::close(fds[1]);
-    std::string seen;
-    char c;
-    while (::read(fds[0], &c, 1) == 1) {
-      seen += c;
-      if (c == '\n' && seen.find(stop) != std::string::npos) {
-        ::kill(pid, SIGKILL);
-        break;
-      }
-    }
-    ::close(fds[0]);
-    int status = 0;
-    ::waitpid(pid, &status, 0);
-    return seen;
-  };
+  auto run_until = [&](const std::string& stop) { return run_until_killed(args, stop).seen; };
   const std::string first = run_until("checkpoint ae1 step 1");
   ASSERT_NE(first.find("checkpoint ae1 step 1"), std::string::npos) << first;
   EXPECT_TRUE(fs::exists(out / "ae1.checkpoint.safetensors"));
@@ -513,11 +502,9 @@ TEST_F(Pipeline, SuitesGenerateTheirTestDataOnceAndReportEverySuite) {
       << md;
 
   // two cameras: the OOD test set of the paper's OOD table, its appendix row beside ours
-  for (const char* seed : {"0"}) {
-    const Output g = run(kGenerate + " --config tiny-2c --seed " + seed + " --out " +
-                         (dir_ / "data2c").string());
-    ASSERT_EQ(g.rc, 0) << g.text;
-  }
+  const Output g =
+      run(kGenerate + " --config tiny-2c --seed 0 --out " + (dir_ / "data2c").string());
+  ASSERT_EQ(g.rc, 0) << g.text;
   const fs::path run2c = dir_ / "suite_run_2c";
   const Output t2 = run(kTrain + " --config 2c-tiny --data " + (dir_ / "data2c").string() +
                         " --out " + run2c.string() + " --threads 2 --progress lines");
@@ -533,6 +520,20 @@ TEST_F(Pipeline, SuitesGenerateTheirTestDataOnceAndReportEverySuite) {
   EXPECT_NE(md2.find("| the paper | -- | | 0.084 | 0.017 | 0.239 | 0.048 | 0.199 | 0.120 |"),
             std::string::npos)
       << md2;
+  // a 1C run asked for OOD alone: nothing can run, said before anything trains
+  const Output none = run(kEval + " --run " + run_dir.string() + " --data-cache " + cache.string() +
+                          " --suite ood --out " + (dir_ / "report_none").string());
+  EXPECT_EQ(none.rc, 1) << none.text;
+  EXPECT_NE(none.text.find("none of the suites asked for can run; ood: no ood test set"),
+            std::string::npos)
+      << none.text;
+  EXPECT_EQ(none.text.find("supervised baseline on"), std::string::npos) << none.text;
+  // the training set's own seed as the test seed
+  const Output same = run(kEval + " --run " + run_dir.string() + " --data-cache " + cache.string() +
+                          " --suite id --test-seed 0");
+  EXPECT_EQ(same.rc, 2) << same.text;
+  EXPECT_NE(same.text.find("--test-seed 0 is the training set's seed"), std::string::npos)
+      << same.text;
   // a suite that is not one
   const Output bad = run(kEval + " --run " + run2c.string() + " --suite id,odd");
   EXPECT_EQ(bad.rc, 2) << bad.text;
@@ -543,8 +544,8 @@ TEST_F(Pipeline, SuitesGenerateTheirTestDataOnceAndReportEverySuite) {
 
 // report.html opens from a file in headless Chromium and its screenshot shows the plots:
 // not blank, scatter points, curves, heat maps and images drawn (report_screenshot_check.py);
-// the same page with its SVG hidden fails the check, so the check can fail. Skips when
-// Chromium or Python's PIL is absent (ci/install-deps installs both).
+// the page with one kind of plot hidden fails that kind's check, so every check can fail. Skips
+// when Chromium or Python's PIL is absent (ci/install-deps installs both).
 TEST_F(Pipeline, ReportOpensInHeadlessChromiumAndShowsItsPlots) {
   const std::string chromium = ROPES_CHROMIUM_EXE;
   if (chromium.empty() || chromium.find("NOTFOUND") != std::string::npos)
@@ -576,20 +577,38 @@ TEST_F(Pipeline, ReportOpensInHeadlessChromiumAndShowsItsPlots) {
   const Output check = run("/usr/bin/python3 " + std::string(ROPES_EVAL_TEST_DIR) +
                            "/report_screenshot_check.py " + (dir_ / "shot.png").string());
   EXPECT_EQ(check.rc, 0) << check.text;
-  // the page with every plot hidden must fail the same check
-  std::string hidden = html;
-  for (std::size_t at = hidden.find("<svg "); at != std::string::npos;
-       at = hidden.find("<svg ", at + 1))
-    hidden.insert(at + 5, "style=\"display:none\" ");
-  {
-    std::ofstream out(dir_ / "hidden.html");
-    out << hidden;
+  // each kind of plot hidden alone fails its own check, so each check can fail
+  struct Hidden {
+    std::vector<std::string> tags;  // what gets style="display:none"
+    const char* check;              // the check that must then fail
+  };
+  const Hidden hidden[] = {
+      {{"<svg class=\"plot scatter\""}, "FAILED: scatter"},
+      {{"<svg class=\"plot curve\"", "<svg class=\"plot label-efficiency\""}, "FAILED: curves"},
+      {{"<svg class=\"plot heatmap\""}, "FAILED: heat-map"},
+      {{"<img "}, "FAILED: images"},
+  };
+  for (const Hidden& h : hidden) {
+    std::string page = html;
+    std::size_t found = 0;
+    for (const std::string& tag : h.tags)
+      for (std::size_t at = page.find(tag); at != std::string::npos; at = page.find(tag, at + 1)) {
+        page.insert(at + tag.find(' ') + 1, "style=\"display:none\" ");
+        ++found;
+      }
+    ASSERT_GT(found, 0u) << h.check << ": the report has no " << h.tags[0];
+    {
+      std::ofstream out(dir_ / "hidden.html");
+      out << page;
+    }
+    fs::remove(dir_ / "hidden.png");
+    shoot(dir_ / "hidden.html", dir_ / "hidden.png");
+    ASSERT_TRUE(fs::exists(dir_ / "hidden.png"));
+    const Output bad = run("/usr/bin/python3 " + std::string(ROPES_EVAL_TEST_DIR) +
+                           "/report_screenshot_check.py " + (dir_ / "hidden.png").string());
+    EXPECT_NE(bad.rc, 0) << h.check << "\n" << bad.text;
+    EXPECT_NE(bad.text.find(h.check), std::string::npos) << bad.text;
   }
-  shoot(dir_ / "hidden.html", dir_ / "hidden.png");
-  ASSERT_TRUE(fs::exists(dir_ / "hidden.png"));
-  const Output bad = run("/usr/bin/python3 " + std::string(ROPES_EVAL_TEST_DIR) +
-                         "/report_screenshot_check.py " + (dir_ / "hidden.png").string());
-  EXPECT_NE(bad.rc, 0) << bad.text;
 }
 
 // ropes-run: generate -> train -> evaluate -> report in one command. Killed inside stage 2,
@@ -615,36 +634,9 @@ TEST_F(Pipeline, RopesRunResumesInsideItsStagesAndEndsWithTheTable) {
                                          "20",
                                          "--supervised",
                                          "100"};
-  int fds[2];
-  ASSERT_EQ(::pipe(fds), 0);
-  const pid_t pid = ::fork();
-  ASSERT_GE(pid, 0);
-  if (pid == 0) {
-    ::dup2(fds[1], 1);
-    ::dup2(fds[1], 2);
-    ::close(fds[0]);
-    std::vector<char*> argv;
-    for (const std::string& a : args)
-      argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    ::execv(kRun.c_str(), argv.data());
-    ::_exit(127);
-  }
-  ::close(fds[1]);
-  std::string seen;
-  char c;
-  bool sent = false;
-  while (::read(fds[0], &c, 1) == 1) {
-    seen += c;
-    if (c == '\n' && !sent &&
-        seen.find("checkpoint ae2 panda_joint4 step 100") != std::string::npos) {
-      ::kill(pid, SIGKILL);
-      sent = true;
-    }
-  }
-  ::close(fds[0]);
-  int status = 0;
-  ::waitpid(pid, &status, 0);
+  const Killed k = run_until_killed(args, "checkpoint ae2 panda_joint4 step 100");
+  const std::string& seen = k.seen;
+  const bool sent = k.sent;
   ASSERT_TRUE(sent) << seen;
   EXPECT_NE(seen.find("ropes-run [1/3 generate"), std::string::npos) << seen;
 
@@ -672,9 +664,26 @@ TEST_F(Pipeline, RopesRunResumesInsideItsStagesAndEndsWithTheTable) {
   ASSERT_EQ(third.rc, 0) << third.text;
   EXPECT_NE(third.text.find("[3/3 evaluate"), std::string::npos) << third.text;
   EXPECT_EQ(third.text.find("evaluating"), std::string::npos) << "evaluated again:\n" << third.text;
-  const std::string table = second.text.substr(second.text.find("ropes-eval: 1c-tiny"));
+  const std::size_t table_at = second.text.find("ropes-eval: 1c-tiny");
+  ASSERT_NE(table_at, std::string::npos) << second.text;
+  const std::string table = second.text.substr(table_at);
   EXPECT_NE(third.text.find(table), std::string::npos) << third.text;
 
+  // other evaluation arguments evaluate again
+  const Output fewer = run(command + "--repeats 3");
+  ASSERT_EQ(fewer.rc, 0) << fewer.text;
+  EXPECT_NE(fewer.text.find("other evaluation arguments than last time: evaluating again"),
+            std::string::npos)
+      << fewer.text;
+  EXPECT_NE(fewer.text.find("3 repeats of 20 calibration"), std::string::npos) << fewer.text;
+  // a dataset config that does not exist: refused before anything is written
+  const Output typo = run(kRun + " 1c-tiny --out " + (dir_ / "ropes_run_typo").string() +
+                          " --dataset-config tiny-1x");
+  EXPECT_EQ(typo.rc, 1) << typo.text;
+  EXPECT_NE(typo.text.find("dataset config 'tiny-1x' is neither a file nor an installed"),
+            std::string::npos)
+      << typo.text;
+  EXPECT_FALSE(fs::exists(dir_ / "ropes_run_typo" / "ropes-run.json"));
   const Output other = run(command + "--seed 3");
   EXPECT_EQ(other.rc, 1) << other.text;
   EXPECT_NE(other.text.find("this directory holds a run with another seed (0, now 3)"),

@@ -49,4 +49,18 @@ inline std::vector<std::string> split_list(const std::string& flag, const std::s
   return out;
 }
 
+/// --supervised's value: percentages in (0, 100], comma-separated, as fractions; "none": none.
+inline std::vector<double> parse_supervised(const std::string& flag, const std::string& value) {
+  std::vector<double> out;
+  if (value == "none")
+    return out;
+  for (const std::string& v : split_list(flag, value)) {
+    const auto pct = parse_number<double>(flag, v);
+    if (!(pct > 0 && pct <= 100))
+      throw UsageError(flag + " has " + v + "; expected percentages in (0, 100]");
+    out.push_back(pct / 100.0);
+  }
+  return out;
+}
+
 }  // namespace ropes::eval::tools

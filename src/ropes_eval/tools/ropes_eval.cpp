@@ -122,16 +122,11 @@ int run(int argc, char** argv) {
         suite_args.occlusion_sizes.push_back(size);
       }
     } else if (flag == "--supervised") {
-      suite_args.supervised.clear();
-      if (value != "none")
-        for (const std::string& v : split_list(flag, value)) {
-          const auto pct = parse_number<double>(flag, v);
-          if (!(pct > 0 && pct <= 100))
-            throw UsageError("--supervised has " + v + "; expected percentages in (0, 100]");
-          suite_args.supervised.push_back(pct / 100.0);
-        }
+      suite_args.supervised = tools::parse_supervised(flag, value);
     } else if (flag == "--supervised-max-steps") {
       suite_args.supervised_max_steps = parse_number<std::int64_t>(flag, value);
+      if (suite_args.supervised_max_steps < 1)
+        throw UsageError("--supervised-max-steps is " + value + "; expected at least 1");
     } else
       throw UsageError("unknown option '" + flag + "' (see --help)");
   }

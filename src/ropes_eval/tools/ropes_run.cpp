@@ -12,12 +12,14 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "suites.hpp"
 #include "test_data.hpp"
@@ -43,10 +45,13 @@ The ROPES main job on the experiment config CONFIG (a file or an installed name:
               report.html
 It ends by printing the per-joint MCC / MSE table beside the paper's numbers and the path of
 report.html. Run it again with the same arguments after an interruption: finished stages
-are kept (OUT/ropes-run.json records them) and the stage that was running resumes inside.
+are kept (OUT/ropes-run.json records them), generation and training resume inside
+themselves (shards, checkpoints), and evaluation runs again on its cached test sets (also
+when asked for with other evaluation arguments). Another config, seed, data seed, dataset
+config or thread count in the same OUT is refused, naming it.
 
 options:
-  --out DIR             where everything goes (default runs/CONFIG)
+  --out DIR             where everything goes (default runs/<the config's name>)
   --seed S              the training seed (default 0)
   --data-seed S         the training set's seed (default 0; the test sets take S + 1)
   --dataset-config D    the dataset config to generate (default: CONFIG's dataset.config)
@@ -67,8 +72,13 @@ nlohmann::json read_state(const fs::path& p) {
     return nlohmann::json::object();
   std::ifstream in(p);
   const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
-  if (!j.is_object())
-    throw std::runtime_error(p.string() + ": not a ropes-run state file (remove it to start over)");
+  const bool shaped = j.is_object() && j.value("format", "") == "ropes-run" &&
+                      (!j.contains("identity") || j["identity"].is_object()) &&
+                      (!j.contains("stages") || j["stages"].is_object());
+  if (!shaped)
+    throw std::runtime_error(p.string() +
+                             ": not a ropes-run state file (format \"ropes-run\" with objects "
+                             "\"identity\" and \"stages\"); remove it to start over");
   return j;
 }
 
@@ -111,16 +121,9 @@ int run(int argc, char** argv) {
       eval.calibration_samples = parse_number<std::int64_t>(flag, value);
     else if (flag == "--test-samples")
       eval.test_samples = parse_number<std::int64_t>(flag, value);
-    else if (flag == "--supervised") {
-      suites.supervised.clear();
-      if (value != "none")
-        for (const std::string& v : split_list(flag, value)) {
-          const auto pct = parse_number<double>(flag, v);
-          if (!(pct > 0 && pct <= 100))
-            throw UsageError("--supervised has " + v + "; expected percentages in (0, 100]");
-          suites.supervised.push_back(pct / 100.0);
-        }
-    } else if (flag == "--threads")
+    else if (flag == "--supervised")
+      suites.supervised = tools::parse_supervised(flag, value);
+    else if (flag == "--threads")
       threads = parse_number<int>(flag, value);
     else if (flag == "--progress") {
       if (value != "bar" && value != "lines" && value != "auto")
@@ -133,13 +136,19 @@ int run(int argc, char** argv) {
     throw UsageError("CONFIG is required (see --help)");
   if (threads < 1 || threads > 256)
     throw UsageError("--threads is " + std::to_string(threads) + "; expected 1..256");
-  if (eval.repeats < 1 || eval.calibration_samples < 2 || eval.test_samples < 2)
-    throw UsageError("--repeats must be at least 1 and the sample counts at least 2");
+  if (eval.repeats < 1 || eval.repeats > 10000 || eval.calibration_samples < 2 ||
+      eval.test_samples < 2)
+    throw UsageError("--repeats must be 1..10000 and the sample counts at least 2 (they are " +
+                     std::to_string(eval.repeats) + ", " +
+                     std::to_string(eval.calibration_samples) + " and " +
+                     std::to_string(eval.test_samples) + ")");
 
   const ropes::crl::ExperimentConfig config = ropes::crl::load_experiment_config(config_arg);
   // the dataset config the experiment config names (1c-small: small-1c)
   if (dataset_config.empty())
     dataset_config = config.dataset_config;
+  // found before anything is written, so that a misspelt name leaves no state behind
+  const fs::path dataset_file = tools::installed_dataset_config(dataset_config);
   const fs::path dir = out.empty() ? fs::path("runs") / config.name : fs::path(out);
   const fs::path train_data = dir / "train-data", run_dir = dir / "run",
                  report_dir = dir / "report", state_file = dir / "ropes-run.json";
@@ -151,7 +160,13 @@ int run(int argc, char** argv) {
                                    {"seed", seed},
                                    {"data_seed", data_seed},
                                    {"threads", threads}};
-  if (state.contains("identity") && state["identity"] != identity) {
+  // the identity binds the directory once a stage has finished
+  bool any_finished = false;
+  if (state.contains("stages"))
+    for (auto it = state["stages"].begin(); it != state["stages"].end(); ++it)
+      any_finished =
+          any_finished || (it.value().is_object() && it.value().value("complete", false));
+  if (any_finished && state.contains("identity") && state["identity"] != identity) {
     for (auto it = identity.begin(); it != identity.end(); ++it)
       if (state["identity"].value(it.key(), nlohmann::json()) != it.value())
         throw std::runtime_error(
@@ -183,8 +198,7 @@ int run(int argc, char** argv) {
 
   // 1: the training set
   if (!finished("generate")) {
-    const ropes::sim::DatasetConfig data =
-        ropes::sim::DatasetConfig::load(tools::installed_dataset_config(dataset_config));
+    const ropes::sim::DatasetConfig data = ropes::sim::DatasetConfig::load(dataset_file);
     ropes::sim::GenerateOptions g;
     g.out = train_data;
     g.seed = data_seed;
@@ -226,7 +240,21 @@ int run(int argc, char** argv) {
     say(2, "finished before: " + run_dir.string());
   }
 
-  // 3: the suites, the supervised baseline and the report
+  // 3: the suites, the supervised baseline and the report; evaluated again when asked for
+  // with other evaluation arguments (it does not resume inside: its test sets are cached)
+  std::vector<double> fractions = suites.supervised;
+  std::sort(fractions.begin(), fractions.end());
+  fractions.erase(std::unique(fractions.begin(), fractions.end()), fractions.end());
+  const nlohmann::json evaluation = {{"suites", suites.suites},
+                                     {"repeats", eval.repeats},
+                                     {"calibration_samples", eval.calibration_samples},
+                                     {"test_samples", eval.test_samples},
+                                     {"supervised", fractions}};
+  if (finished("evaluate") &&
+      state["stages"]["evaluate"].value("arguments", nlohmann::json()) != evaluation) {
+    say(3, "other evaluation arguments than last time: evaluating again");
+    state["stages"].erase("evaluate");
+  }
   std::string table;
   if (!finished("evaluate")) {
     suites.cache = dir / "test-data";
@@ -238,6 +266,7 @@ int run(int argc, char** argv) {
     state["stages"]["evaluate"] = {
         {"complete", true},
         {"dir", report_dir.string()},
+        {"arguments", evaluation},
         {"table", table},
         {"wall_s", std::chrono::duration<double>(std::chrono::steady_clock::now() - at).count()}};
     save();

@@ -5,6 +5,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cstdlib>
 #include <fstream>
 #include <set>
@@ -30,72 +31,76 @@ fs::path default_cache() {
   throw UsageError("no --data-cache, and neither ROPES_DATA_CACHE, XDG_CACHE_HOME nor HOME is set");
 }
 
+namespace {
+
+// run.json's image side and the training set's seed, each checked
+struct RunFacts {
+  std::int64_t image_side = 0;
+  std::uint64_t train_seed = 0;
+  bool have_train_seed = false;
+};
+
+RunFacts run_facts(const fs::path& run_dir) {
+  RunFacts f;
+  const fs::path run_file = run_dir / "run.json";
+  std::ifstream in(run_file);
+  const nlohmann::json run = nlohmann::json::parse(in, nullptr, false);
+  if (!run.is_object())
+    throw std::invalid_argument(run_file.string() + ": missing or not JSON; is '" +
+                                run_dir.string() + "' a run directory of ropes-train?");
+  const nlohmann::json::json_pointer side("/config/dataset/image_size");
+  if (run.contains(side) && run[side].is_number_integer())
+    f.image_side = run[side].get<std::int64_t>();
+  const fs::path manifest = fs::path(run.value("data_dir", "")) / "manifest.json";
+  std::ifstream m(manifest);
+  const nlohmann::json j = nlohmann::json::parse(m, nullptr, false);
+  const nlohmann::json::json_pointer seed("/metadata/seed");
+  if (j.is_object() && j.contains(seed)) {
+    if (!j[seed].is_number_unsigned())
+      throw std::invalid_argument(manifest.string() + ": metadata.seed is " + j[seed].dump() +
+                                  "; expected a non-negative integer");
+    f.train_seed = j[seed].get<std::uint64_t>();
+    f.have_train_seed = true;
+  }
+  return f;
+}
+
+}  // namespace
+
 SuiteOutcome run_suites(const std::string& run_dir, const std::string& data, const std::string& out,
                         int threads, ropes::eval::RunEvaluationOptions options,
                         const SuiteArgs& args, const std::function<void(const std::string&)>& log) {
-  std::set<std::string> wanted;
-  for (const std::string& s : args.suites) {
-    if (s != "id" && s != "ood" && s != "causal" && s != "occlusion")
-      throw UsageError("--suite names '" + s + "'; expected id, ood, causal or occlusion");
-    wanted.insert(s);
-  }
+  check_suites(args.suites);
+  const std::set<std::string> wanted(args.suites.begin(), args.suites.end());
   const fs::path report_dir = out.empty() ? fs::path(run_dir) / "report" : fs::path(out);
-  const fs::path cache = args.cache.empty() ? default_cache() : args.cache;
-  // the training set's seed: the test sets default to the next one
+  const RunFacts facts = run_facts(run_dir);
   ropes::eval::EvaluationReport report;
-  // the run's image side: occlusion squares larger than the image are left out with a note
-  std::int64_t image_side = 0;
-  {
-    std::ifstream in(fs::path(run_dir) / "run.json");
-    const nlohmann::json run = nlohmann::json::parse(in, nullptr, false);
-    const nlohmann::json::json_pointer p("/config/dataset/image_size");
-    if (run.is_object() && run.contains(p) && run[p].is_number_integer())
-      image_side = run[p].get<std::int64_t>();
-  }
+  const bool occlusion = wanted.count("occlusion") != 0;
+  // occlusion squares larger than the image are left out with a note
   std::vector<std::int64_t> occlusion_sizes;
-  for (std::int64_t size : args.occlusion_sizes)
-    if (image_side > 0 && size > image_side)
+  for (std::int64_t size : occlusion ? args.occlusion_sizes : std::vector<std::int64_t>{}) {
+    if (facts.image_side > 0 && size > facts.image_side)
       report.notes.push_back("occlusion " + std::to_string(size) + ": larger than the run's " +
-                             std::to_string(image_side) + " px images");
+                             std::to_string(facts.image_side) + " px images");
     else
       occlusion_sizes.push_back(size);
-  std::uint64_t test_seed = args.test_seed;
-  if (!args.have_test_seed) {
-    std::ifstream in(fs::path(run_dir) / "run.json");
-    const nlohmann::json run = nlohmann::json::parse(in, nullptr, false);
-    const fs::path manifest =
-        fs::path(run.is_object() ? run.value("data_dir", "") : "") / "manifest.json";
-    std::ifstream m(manifest);
-    const nlohmann::json j = nlohmann::json::parse(m, nullptr, false);
-    test_seed = (j.is_object() && j.contains("/metadata/seed"_json_pointer)
-                     ? j["/metadata/seed"_json_pointer].get<std::uint64_t>()
-                     : 0) +
-                1;
   }
-  // the supervised baselines, trained once and scored on every suite
-  std::vector<ropes::eval::SupervisedEncoder> supervised;
-  for (double f : args.supervised) {
-    ropes::eval::SupervisedOptions so;
-    so.seed = options.seed;
-    so.max_steps = args.supervised_max_steps;
-    supervised.push_back(ropes::eval::SupervisedEncoder::train(run_dir, f, so));
-    const ropes::eval::SupervisedEncoder& e = supervised.back();
-    report.supervised.push_back({f, e.labels(), e.steps(), e.final_loss()});
-    std::ostringstream line;
-    line << "supervised baseline on " << e.labels() << " labelled samples (" << 100.0 * f
-         << " %): " << e.steps() << " steps, last epoch's loss " << e.final_loss();
-    log(line.str());
-  }
-  for (const ropes::eval::SupervisedEncoder& e : supervised)
-    options.supervised.push_back(&e);
+  // the test sets take the training set's seed + 1 unless told; the training seed itself
+  // would give the training set's own anchors
+  const std::uint64_t test_seed = args.have_test_seed ? args.test_seed : facts.train_seed + 1;
+  if (facts.have_train_seed && test_seed == facts.train_seed)
+    throw UsageError("--test-seed " + std::to_string(test_seed) +
+                     " is the training set's seed: its test sets would hold the training "
+                     "anchors; pick another");
+
+  // every test set first, so that a suite that cannot run is known before anything trains
   std::vector<std::string> distributions;
   for (const char* d : {"id", "ood", "causal"})
     if (wanted.count(d) != 0)
       distributions.push_back(d);
-  const bool occlusion = wanted.count("occlusion") != 0;
   if (distributions.empty())
     distributions.push_back("id");
-  fs::path id_data;
+  std::vector<std::pair<std::string, TestData>> tests;
   for (const std::string& d : distributions) {
     TestData test;
     if (d == "id" && !data.empty()) {
@@ -107,7 +112,7 @@ SuiteOutcome run_suites(const std::string& run_dir, const std::string& data, con
       request.distribution = d;
       request.min_observational = options.calibration_samples + options.test_samples;
       request.seed = test_seed;
-      request.cache = cache;
+      request.cache = args.cache.empty() ? default_cache() : args.cache;
       request.threads = threads;
       request.log = log;
       try {
@@ -125,11 +130,39 @@ SuiteOutcome run_suites(const std::string& run_dir, const std::string& data, con
                                     : std::to_string(test.shards_written) + " shards generated") +
           ")");
     }
-    if (d == "id")
-      id_data = test.dir;
+    tests.emplace_back(d, test);
+  }
+  if (tests.empty()) {
+    std::string why;
+    for (const std::string& n : report.notes)
+      why += "; " + n;
+    throw std::invalid_argument("none of the suites asked for can run" + why);
+  }
+
+  // the supervised baselines, trained once and scored on every suite: fractions ascending,
+  // each once
+  std::vector<double> fractions = args.supervised;
+  std::sort(fractions.begin(), fractions.end());
+  fractions.erase(std::unique(fractions.begin(), fractions.end()), fractions.end());
+  std::vector<ropes::eval::SupervisedEncoder> supervised;
+  for (double f : fractions) {
+    ropes::eval::SupervisedOptions so;
+    so.seed = options.seed;
+    so.max_steps = args.supervised_max_steps;
+    supervised.push_back(ropes::eval::SupervisedEncoder::train(run_dir, f, so));
+    const ropes::eval::SupervisedEncoder& e = supervised.back();
+    report.supervised.push_back({f, e.labels(), e.steps(), e.final_loss()});
+    std::ostringstream line;
+    line << "supervised baseline on " << e.labels() << " labelled samples (" << 100.0 * f
+         << " %): " << e.steps() << " steps, last epoch's loss " << e.final_loss();
+    log(line.str());
+  }
+  for (const ropes::eval::SupervisedEncoder& e : supervised)
+    options.supervised.push_back(&e);
+
+  for (const auto& [d, test] : tests) {
     std::vector<std::int64_t> sizes = {0};
-    if (occlusion)
-      sizes.insert(sizes.end(), occlusion_sizes.begin(), occlusion_sizes.end());
+    sizes.insert(sizes.end(), occlusion_sizes.begin(), occlusion_sizes.end());
     for (std::int64_t size : sizes) {
       ropes::eval::RunEvaluationOptions o = options;
       o.occlusion = size;
@@ -155,16 +188,16 @@ SuiteOutcome run_suites(const std::string& run_dir, const std::string& data, con
   fs::create_directories(report_dir);
   write_text(report_dir / "results.json", report.to_json().dump(2) + "\n");
   write_text(report_dir / "results.md", report.markdown());
-  // report.html: the occlusion figure at the middle size asked (the paper's 32 px by default)
-  if (!id_data.empty()) {
-    std::int64_t figure = 32;
-    if (!occlusion_sizes.empty())
-      figure = occlusion_sizes[occlusion_sizes.size() / 2];
-    figure = image_side > 0 ? std::min(figure, image_side / 2) : figure;
-    const ropes::eval::ReportImages images =
-        ropes::eval::collect_report_images(run_dir, id_data, figure, options.seed);
-    write_text(report_dir / "report.html", ropes::eval::html_report(report, run_dir, images));
-  }
+  // report.html: images from the first suite's test set; the occlusion figure at the middle
+  // size asked (the paper's 32 px by default), at most half the image
+  std::int64_t figure = 32;
+  if (!occlusion_sizes.empty())
+    figure = occlusion_sizes[occlusion_sizes.size() / 2];
+  if (facts.image_side > 0)
+    figure = std::min(figure, facts.image_side / 2);
+  const ropes::eval::ReportImages images =
+      ropes::eval::collect_report_images(run_dir, tests.front().second.dir, figure, options.seed);
+  write_text(report_dir / "report.html", ropes::eval::html_report(report, run_dir, images));
   const ropes::eval::SuiteResult* id = report.find("id");
   if (id != nullptr)
     write_text(fs::path(run_dir) / "calibration.json", id->evaluation.calibration.dump(2) + "\n");

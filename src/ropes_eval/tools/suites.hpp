@@ -37,8 +37,11 @@ void check_suites(const std::vector<std::string>& suites);
 fs::path default_cache();
 
 /// Evaluates the run on the suites (`data`, when not empty, is the id test set) and writes
-/// OUT (default RUN/report)/results.json, results.md, report.html and RUN/calibration.json;
-/// progress lines go to `log`.
+/// OUT (default RUN/report)/results.json, results.md, report.html and, with an id suite,
+/// RUN/calibration.json; progress lines go to `log`. Every test set is found or generated
+/// before the supervised baselines train; a suite the setting has none for becomes a note,
+/// and std::invalid_argument when no suite asked for can run. UsageError for a test seed
+/// equal to the training set's.
 SuiteOutcome run_suites(const std::string& run_dir, const std::string& data, const std::string& out,
                         int threads, RunEvaluationOptions options, const SuiteArgs& args,
                         const std::function<void(const std::string&)>& log);

@@ -10,6 +10,7 @@
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
+#include <vector>
 
 namespace ropes::eval::tools {
 
@@ -114,6 +115,19 @@ TestData ensure_test_data(const TestDataRequest& request) {
   const sim::GenerateResult result = sim::generate_dataset(config, options);
   if (!result.complete)
     throw std::runtime_error(out.dir.string() + ": the test set is not complete after generation");
+  // the same robot as the training set, and for id the same distribution: a training set
+  // made from a modified copy of an installed config is caught here
+  const nlohmann::json test_meta =
+      read_json(out.dir / "manifest.json").value("metadata", nlohmann::json::object());
+  std::vector<std::string> fields = {"robot"};
+  if (request.distribution == "id")
+    fields.push_back("distribution");
+  for (const std::string& f : fields)
+    if (test_meta.value(f, nlohmann::json()) != meta.value(f, nlohmann::json()))
+      throw std::invalid_argument(
+          manifest.string() + ": the training set's " + f + " differs from that of the " +
+          request.distribution + " test set made from the installed config " + file.string() +
+          " (was the training set made from a modified copy?); pass a test set with --data DIR");
   out.shards_written = result.shards_written;
   return out;
 }

@@ -42,7 +42,8 @@ ReportImages collect_report_images(const std::filesystem::path& run_dir,
                                    std::uint64_t seed, std::int64_t samples = 3);
 
 /// report.html's text. `run_dir` holds run.json (sparsity matrices) and metrics.jsonl
-/// (training curves); a missing or unreadable metrics.jsonl leaves its section saying so.
+/// (training curves); a missing metrics.jsonl, or one without losses, leaves its section
+/// saying so.
 std::string html_report(const EvaluationReport& report, const std::filesystem::path& run_dir,
                         const ReportImages& images);
 

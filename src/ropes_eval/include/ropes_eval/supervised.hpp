@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace ropes::eval {
 
@@ -34,7 +35,7 @@ class SupervisedEncoder {
   /// (RUN/codes.npy and the angles of run.json's data_dir): the first round(fraction * rows)
   /// of nn::shuffled_indices(rows, seed, 0), at least 2, so smaller fractions are subsets of
   /// larger ones. Throws std::invalid_argument for a fraction outside (0, 1];
-  /// nn::FileFormatError for an unreadable run or training set.
+  /// nn::FileFormatError for an unreadable run or training set, or one of fewer than 2 rows.
   static SupervisedEncoder train(const std::filesystem::path& run_dir, double fraction,
                                  const SupervisedOptions& options = {});
   SupervisedEncoder(SupervisedEncoder&&) noexcept;
@@ -45,9 +46,10 @@ class SupervisedEncoder {
   /// (radians, the run's joints).
   Eigen::MatrixXd predict(const Eigen::MatrixXd& codes) const;
   double fraction() const;
-  std::int64_t labels() const;  ///< labelled samples it trained on
-  std::int64_t steps() const;   ///< optimiser steps it took
-  double final_loss() const;    ///< the mean loss of its last epoch (standardised units)
+  const std::vector<std::string>& joints() const;  ///< what predict's columns are
+  std::int64_t labels() const;                     ///< labelled samples it trained on
+  std::int64_t steps() const;                      ///< optimiser steps it took
+  double final_loss() const;  ///< the mean loss of its last epoch (standardised units)
 
  private:
   struct State;
