@@ -7,6 +7,7 @@
 #include <limits>
 #include <sstream>
 
+#include "ropes_eval/supervised.hpp"
 #include "text_format.hpp"
 
 namespace ropes::eval {
@@ -14,33 +15,13 @@ namespace ropes::eval {
 namespace fs = std::filesystem;
 using detail::difference;
 using detail::fmt;
+using detail::index_of;
 using detail::plus_minus;
+using detail::table_columns;
 
 namespace {
 
 const double kNan = std::numeric_limits<double>::quiet_NaN();
-
-// the Panda's joints 1..6 (the paper's columns) when the run's joints are among them, else
-// the run's own
-std::vector<std::string> table_columns(const std::vector<std::string>& joints) {
-  bool panda = true;
-  for (const std::string& j : joints)
-    panda =
-        panda && j.size() == 12 && j.rfind("panda_joint", 0) == 0 && j[11] >= '1' && j[11] <= '6';
-  if (!panda)
-    return joints;
-  std::vector<std::string> c;
-  for (int i = 1; i <= 6; ++i)
-    c.push_back("panda_joint" + std::to_string(i));
-  return c;
-}
-
-std::ptrdiff_t index_of(const std::vector<std::string>& joints, const std::string& j) {
-  for (std::size_t k = 0; k < joints.size(); ++k)
-    if (joints[k] == j)
-      return static_cast<std::ptrdiff_t>(k);
-  return -1;
-}
 
 std::string patch_label(std::int64_t occlusion) {
   return occlusion > 0 ? std::to_string(occlusion) : "--";
@@ -265,8 +246,7 @@ std::string EvaluationReport::markdown() const {
         out << " --- |";
       out << "\n";
       for (const SupervisedInfo& info : supervised) {
-        char name[48];
-        std::snprintf(name, sizeof name, "supervised_%g%%", 100.0 * info.fraction);
+        const std::string name = supervised_method_name(info.fraction);
         const MethodSummary* m = method(ev, name);
         if (m == nullptr)
           continue;
@@ -297,8 +277,7 @@ std::string EvaluationReport::markdown() const {
       for (std::size_t k = 0; k < ev.joints.size(); ++k) {
         std::string needed = "more than " + fmt(100.0 * supervised.back().fraction, 0) + " %";
         for (const SupervisedInfo& info : supervised) {
-          char name[48];
-          std::snprintf(name, sizeof name, "supervised_%g%%", 100.0 * info.fraction);
+          const std::string name = supervised_method_name(info.fraction);
           const MethodSummary* m = method(ev, name);
           if (m != nullptr && m->mean.mse[k] <= r.mean.mse[k]) {
             char b[32];

@@ -16,6 +16,7 @@
 
 #include "png.hpp"
 #include "ropes_eval/occlusion.hpp"
+#include "ropes_eval/supervised.hpp"
 #include "text_format.hpp"
 
 namespace ropes::eval {
@@ -545,8 +546,7 @@ std::string html_report(const EvaluationReport& report, const fs::path& run_dir,
     for (std::size_t k = 0; k < joints.size(); ++k) {
       Series sup{"supervised", {}, {}}, ours{"ROPES (label-free)", {}, {}};
       for (const SupervisedInfo& p : report.supervised) {
-        char name[48];
-        std::snprintf(name, sizeof name, "supervised_%g%%", 100.0 * p.fraction);
+        const std::string name = supervised_method_name(p.fraction);
         for (const MethodSummary& m : id->evaluation.methods)
           if (m.method == name) {
             sup.x.push_back(100.0 * p.fraction);

@@ -18,6 +18,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "json_file.hpp"
 #include "ropes_eval/calibration.hpp"
 #include "ropes_eval/correlation.hpp"
 #include "ropes_eval/occlusion.hpp"
@@ -34,18 +35,6 @@ using nn::Shape;
 using nn::Tensor;
 
 namespace {
-
-nlohmann::json read_json(const fs::path& path) {
-  std::ifstream in(path);
-  if (!in)
-    throw nn::FileFormatError(path.string() + ": cannot be opened");
-  std::stringstream text;
-  text << in.rdbuf();
-  const nlohmann::json j = nlohmann::json::parse(text.str(), nullptr, false);
-  if (j.is_discarded())
-    throw nn::FileFormatError(path.string() + ": not valid JSON");
-  return j;
-}
 
 Eigen::MatrixXd to_matrix(const Tensor& t) {
   const std::int64_t n = t.shape()[0], k = t.numel() / std::max<std::int64_t>(n, 1);
@@ -260,7 +249,7 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
   ev.data_dir = data_dir.string();
   crl::Estimator estimator = crl::Estimator::load(run_dir);
   const crl::ExperimentConfig& config = estimator.config();
-  const nlohmann::json run = read_json(run_dir / "run.json");
+  const nlohmann::json run = detail::read_json_file(run_dir / "run.json");
   ev.config_name = config.name;
   ev.setting = config.name.substr(0, config.name.rfind('-'));
   ev.joints = config.joints;
@@ -269,7 +258,7 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
   // the test dataset: not the training set, the run's cameras and image size
   const nn::DatasetReader reader = nn::DatasetReader::open(data_dir);
   const fs::path manifest = data_dir / "manifest.json";
-  ev.dataset_id = read_json(manifest).value("dataset", "");
+  ev.dataset_id = detail::read_json_file(manifest).value("dataset", "");
   if (ev.dataset_id == ev.train_dataset_id)
     throw std::invalid_argument(
         data_dir.string() + " is the dataset the run trained on (dataset id " +
@@ -389,8 +378,7 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
           "evaluate_run: a supervised baseline " +
           std::string(s == nullptr ? "is null" : "estimates other joints than the run's") +
           "; train it on this run (SupervisedEncoder::train)");
-    char name[48];
-    std::snprintf(name, sizeof name, "supervised_%g%%", 100.0 * s->fraction());
+    const std::string name = supervised_method_name(s->fraction());
     supervised.emplace_back(name, s->predict(y));
   }
   for (const auto& [name, estimate] : supervised)
@@ -457,8 +445,8 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
   }
 
   // the paper's numbers for this setting
-  const nlohmann::json paper =
-      read_json(options.paper_results.empty() ? installed_paper_results() : options.paper_results);
+  const nlohmann::json paper = detail::read_json_file(
+      options.paper_results.empty() ? installed_paper_results() : options.paper_results);
   for (const std::string& j : config.joints) {
     const nlohmann::json* p = nullptr;
     if (paper["settings"].contains(ev.setting) && paper["settings"][ev.setting].contains(j))
@@ -590,22 +578,8 @@ std::string RunEvaluation::markdown() const {
   const MethodSummary& r = methods[0];
   auto pm = [](double mean, double sd) { return fmt(mean) + " ± " + fmt(sd); };
   // the paper's Table 1 has Joint 1 .. Joint 6 of the Panda; a run of other joints gets its own
-  std::vector<std::string> columns;
-  bool panda = true;
-  for (const std::string& j : joints)
-    panda =
-        panda && j.size() == 12 && j.rfind("panda_joint", 0) == 0 && j[11] >= '1' && j[11] <= '6';
-  if (panda)
-    for (int i = 1; i <= 6; ++i)
-      columns.push_back("panda_joint" + std::to_string(i));
-  else
-    columns = joints;
-  auto index_of = [&](const std::string& c) -> std::ptrdiff_t {
-    for (std::size_t k = 0; k < joints.size(); ++k)
-      if (joints[k] == c)
-        return static_cast<std::ptrdiff_t>(k);
-    return -1;
-  };
+  const std::vector<std::string> columns = detail::table_columns(joints);
+  auto index_of = [&](const std::string& c) { return detail::index_of(joints, c); };
   std::ostringstream out;
   out << "# ropes-eval: " << config_name << "\n\n"
       << "- run: `" << run_dir << "`\n"

@@ -12,10 +12,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
+
+#include "json_file.hpp"
 
 namespace ropes::eval {
 
@@ -38,16 +41,6 @@ SupervisedEncoder::~SupervisedEncoder() = default;
 
 namespace {
 
-nlohmann::json read_json(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream t;
-  t << in.rdbuf();
-  const nlohmann::json j = nlohmann::json::parse(t.str(), nullptr, false);
-  if (!in || j.is_discarded())
-    throw nn::FileFormatError(p.string() + ": cannot be read as JSON");
-  return j;
-}
-
 // the paper's RoboPEPP epochs at 1, 5, 10, 100 % of the labels
 std::int64_t paper_epochs(double fraction) {
   const double known[][2] = {{0.01, 100}, {0.05, 75}, {0.10, 25}, {1.0, 15}};
@@ -66,7 +59,7 @@ SupervisedEncoder SupervisedEncoder::train(const fs::path& run_dir, double fract
     throw std::invalid_argument("SupervisedEncoder::train: fraction " + std::to_string(fraction) +
                                 "; expected 0 < fraction <= 1");
   auto s = std::make_unique<State>();
-  const nlohmann::json run = read_json(run_dir / "run.json");
+  const nlohmann::json run = detail::read_json_file(run_dir / "run.json");
   try {
     s->config = crl::ExperimentConfig::from_json(run.at("config"), (run_dir / "run.json").string());
   } catch (const std::exception& e) {
@@ -218,6 +211,12 @@ Eigen::MatrixXd SupervisedEncoder::predict(const Eigen::MatrixXd& codes) const {
 
 const std::vector<std::string>& SupervisedEncoder::joints() const {
   return state_->config.joints;
+}
+
+std::string supervised_method_name(double fraction) {
+  char name[48];
+  std::snprintf(name, sizeof name, "supervised_%g%%", 100.0 * fraction);
+  return name;
 }
 
 double SupervisedEncoder::fraction() const {

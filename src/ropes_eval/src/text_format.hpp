@@ -1,8 +1,10 @@
 #pragma once
 // Numbers as the tables print them (private to ropes_eval).
 #include <cmath>
+#include <cstddef>
 #include <cstdio>
 #include <string>
+#include <vector>
 
 namespace ropes::eval::detail {
 
@@ -30,6 +32,29 @@ inline std::string difference(double ours, double theirs, bool higher_is_better)
   if (std::fabs(d) < 0.0005)
     return b;
   return std::string(b) + ((d > 0) == higher_is_better ? " better" : " **worse**");
+}
+
+// the columns of the paper's tables: the Panda's joints 1..6 when the run's joints are among
+// them, else the run's own
+inline std::vector<std::string> table_columns(const std::vector<std::string>& joints) {
+  bool panda = true;
+  for (const std::string& j : joints)
+    panda =
+        panda && j.size() == 12 && j.rfind("panda_joint", 0) == 0 && j[11] >= '1' && j[11] <= '6';
+  if (!panda)
+    return joints;
+  std::vector<std::string> c;
+  for (int i = 1; i <= 6; ++i)
+    c.push_back("panda_joint" + std::to_string(i));
+  return c;
+}
+
+// the position of joint `j` in `joints`, -1 when absent
+inline std::ptrdiff_t index_of(const std::vector<std::string>& joints, const std::string& j) {
+  for (std::size_t k = 0; k < joints.size(); ++k)
+    if (joints[k] == j)
+      return static_cast<std::ptrdiff_t>(k);
+  return -1;
 }
 
 }  // namespace ropes::eval::detail

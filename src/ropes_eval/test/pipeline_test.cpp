@@ -684,6 +684,18 @@ TEST_F(Pipeline, RopesRunResumesInsideItsStagesAndEndsWithTheTable) {
             std::string::npos)
       << typo.text;
   EXPECT_FALSE(fs::exists(dir_ / "ropes_run_typo" / "ropes-run.json"));
+  // a state file that is not one: named, nothing run
+  fs::create_directories(dir_ / "ropes_run_damaged");
+  {
+    std::ofstream state(dir_ / "ropes_run_damaged" / "ropes-run.json");
+    state << "[1, 2]";
+  }
+  const Output damaged =
+      run(kRun + " 1c-tiny --out " + (dir_ / "ropes_run_damaged").string() + " --threads 2");
+  EXPECT_EQ(damaged.rc, 1) << damaged.text;
+  EXPECT_NE(damaged.text.find("ropes-run.json: not a ropes-run state file"), std::string::npos)
+      << damaged.text;
+  EXPECT_FALSE(fs::exists(dir_ / "ropes_run_damaged" / "train-data"));
   const Output other = run(command + "--seed 3");
   EXPECT_EQ(other.rc, 1) << other.text;
   EXPECT_NE(other.text.find("this directory holds a run with another seed (0, now 3)"),

@@ -2,8 +2,10 @@
 // Command-line helpers shared by ropes-eval and ropes-run (private to ropes_eval's tools).
 #include <ropes_nn/npy.hpp>
 
+#include <algorithm>
 #include <charconv>
 #include <cstdint>
+#include <cstdio>
 #include <filesystem>
 #include <stdexcept>
 #include <string>
@@ -49,7 +51,8 @@ inline std::vector<std::string> split_list(const std::string& flag, const std::s
   return out;
 }
 
-/// --supervised's value: percentages in (0, 100], comma-separated, as fractions; "none": none.
+/// --supervised's value: percentages in (0, 100], comma-separated, as fractions ascending and
+/// each once; "none": none.
 inline std::vector<double> parse_supervised(const std::string& flag, const std::string& value) {
   std::vector<double> out;
   if (value == "none")
@@ -60,7 +63,23 @@ inline std::vector<double> parse_supervised(const std::string& flag, const std::
       throw UsageError(flag + " has " + v + "; expected percentages in (0, 100]");
     out.push_back(pct / 100.0);
   }
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
   return out;
+}
+
+/// A tool's main: runs `run`, prints an exception as "NAME: message" on stderr and exits 2
+/// for a UsageError, 1 for anything else.
+inline int run_main(const char* name, int (*run)(int, char**), int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const UsageError& e) {
+    std::fprintf(stderr, "%s: %s\n", name, e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s: %s\n", name, e.what());
+    return 1;
+  }
 }
 
 }  // namespace ropes::eval::tools

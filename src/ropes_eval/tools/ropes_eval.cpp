@@ -169,13 +169,5 @@ int run(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   ropes::sim::tune_malloc_for_rendering();
-  try {
-    return run(argc, argv);
-  } catch (const UsageError& e) {
-    std::fprintf(stderr, "ropes-eval: %s\n", e.what());
-    return 2;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "ropes-eval: %s\n", e.what());
-    return 1;
-  }
+  return ropes::eval::tools::run_main("ropes-eval", run, argc, argv);
 }

@@ -12,7 +12,6 @@
 
 #include <unistd.h>
 
-#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
@@ -192,6 +191,19 @@ int run(int argc, char** argv) {
                   s);
     std::cout << head << line << std::endl;
   };
+  // a stage finished: recorded with where its output is and how long it took
+  auto record = [&](const char* stage, const fs::path& where,
+                    std::chrono::steady_clock::time_point since,
+                    const nlohmann::json& extra = nlohmann::json::object()) {
+    nlohmann::json entry = {
+        {"complete", true},
+        {"dir", where.string()},
+        {"wall_s",
+         std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count()}};
+    entry.update(extra);
+    state["stages"][stage] = entry;
+    save();
+  };
   auto finished = [&](const char* stage) {
     return state["stages"].contains(stage) && state["stages"][stage].value("complete", false);
   };
@@ -211,11 +223,7 @@ int run(int argc, char** argv) {
     const ropes::sim::GenerateResult r = ropes::sim::generate_dataset(data, g);
     if (!r.complete)
       throw std::runtime_error(train_data.string() + ": not complete after generation");
-    state["stages"]["generate"] = {
-        {"complete", true},
-        {"dir", train_data.string()},
-        {"wall_s", std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count()}};
-    save();
+    record("generate", train_data, t);
     say(1, "done: " + train_data.string());
   } else {
     say(1, "finished before: " + train_data.string());
@@ -230,11 +238,7 @@ int run(int argc, char** argv) {
     say(2, config.name + " (seed " + std::to_string(seed) + ") into " + run_dir.string());
     const auto at = std::chrono::steady_clock::now();
     ropes::crl::train(config, train_data, run_dir, t);
-    state["stages"]["train"] = {
-        {"complete", true},
-        {"dir", run_dir.string()},
-        {"wall_s", std::chrono::duration<double>(std::chrono::steady_clock::now() - at).count()}};
-    save();
+    record("train", run_dir, at);
     say(2, "done: " + run_dir.string());
   } else {
     say(2, "finished before: " + run_dir.string());
@@ -242,14 +246,11 @@ int run(int argc, char** argv) {
 
   // 3: the suites, the supervised baseline and the report; evaluated again when asked for
   // with other evaluation arguments (it does not resume inside: its test sets are cached)
-  std::vector<double> fractions = suites.supervised;
-  std::sort(fractions.begin(), fractions.end());
-  fractions.erase(std::unique(fractions.begin(), fractions.end()), fractions.end());
   const nlohmann::json evaluation = {{"suites", suites.suites},
                                      {"repeats", eval.repeats},
                                      {"calibration_samples", eval.calibration_samples},
                                      {"test_samples", eval.test_samples},
-                                     {"supervised", fractions}};
+                                     {"supervised", suites.supervised}};
   if (finished("evaluate") &&
       state["stages"]["evaluate"].value("arguments", nlohmann::json()) != evaluation) {
     say(3, "other evaluation arguments than last time: evaluating again");
@@ -263,13 +264,7 @@ int run(int argc, char** argv) {
         tools::run_suites(run_dir.string(), "", report_dir.string(), threads, eval, suites,
                           [&](const std::string& line) { say(3, line); });
     table = outcome.report.table();
-    state["stages"]["evaluate"] = {
-        {"complete", true},
-        {"dir", report_dir.string()},
-        {"arguments", evaluation},
-        {"table", table},
-        {"wall_s", std::chrono::duration<double>(std::chrono::steady_clock::now() - at).count()}};
-    save();
+    record("evaluate", report_dir, at, {{"arguments", evaluation}, {"table", table}});
   } else {
     say(3, "finished before: " + report_dir.string());
     table = state["stages"]["evaluate"].value("table", "");
@@ -282,13 +277,5 @@ int run(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   ropes::sim::tune_malloc_for_rendering();
-  try {
-    return run(argc, argv);
-  } catch (const UsageError& e) {
-    std::fprintf(stderr, "ropes-run: %s\n", e.what());
-    return 2;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "ropes-run: %s\n", e.what());
-    return 1;
-  }
+  return ropes::eval::tools::run_main("ropes-run", run, argc, argv);
 }

@@ -139,13 +139,9 @@ SuiteOutcome run_suites(const std::string& run_dir, const std::string& data, con
     throw std::invalid_argument("none of the suites asked for can run" + why);
   }
 
-  // the supervised baselines, trained once and scored on every suite: fractions ascending,
-  // each once
-  std::vector<double> fractions = args.supervised;
-  std::sort(fractions.begin(), fractions.end());
-  fractions.erase(std::unique(fractions.begin(), fractions.end()), fractions.end());
+  // the supervised baselines, trained once and scored on every suite
   std::vector<ropes::eval::SupervisedEncoder> supervised;
-  for (double f : fractions) {
+  for (double f : args.supervised) {
     ropes::eval::SupervisedOptions so;
     so.seed = options.seed;
     so.max_steps = args.supervised_max_steps;

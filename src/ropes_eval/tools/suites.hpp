@@ -21,7 +21,8 @@ struct SuiteArgs {
   bool have_test_seed = false;
   std::uint64_t test_seed = 0;
   std::vector<std::int64_t> occlusion_sizes = {16, 32, 64};
-  std::vector<double> supervised = {0.01, 0.05, 0.10, 1.0};  // fractions of labelled rows
+  // fractions of labelled rows, ascending and each once (parse_supervised gives them so)
+  std::vector<double> supervised = {0.01, 0.05, 0.10, 1.0};
   std::int64_t supervised_max_steps = 0;
 };
 

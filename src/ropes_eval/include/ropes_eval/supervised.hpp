@@ -29,6 +29,10 @@ struct SupervisedOptions {
   std::int64_t max_steps = 0;
 };
 
+/// The method name a supervised baseline is scored under: "supervised_<p>%" with p the
+/// percentage of labelled rows as %g prints it (0.05 -> "supervised_5%").
+std::string supervised_method_name(double fraction);
+
 class SupervisedEncoder {
  public:
   /// Trains on `fraction` (0 < fraction <= 1) of the rows of the run's training set
