@@ -6,10 +6,12 @@
 
 int main() {
   ropes::msgs::PoseEstimate estimate;
-  estimate.frame_index(7);
+  estimate.frame_sequence_number(7);
+  estimate.run_id("small-1c-seed0");
   estimate.latents({0.31f, -1.2f, 0.05f});
+  estimate.joint_names({"panda_joint2", "panda_joint4", "panda_joint6"});
   estimate.joint_angles({0.1f, -0.4f, 1.2f});
-  estimate.model_id("small-1c-seed0");
+  estimate.valid({true, true, true});
 
   ropes::msgs::PoseEstimatePubSubType type;  // register_type(participant) in a real node
   eprosima::fastrtps::rtps::SerializedPayload_t payload(
