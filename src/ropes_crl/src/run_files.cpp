@@ -54,6 +54,8 @@ void MetricsLog::append(const nlohmann::json& record) const {
   const bool ok = std::fwrite(line.data(), 1, line.size(), f) == line.size();
   if (std::fclose(f) != 0 || !ok)
     throw nn::FileFormatError(path_.string() + ": a record could not be written (disk full?)");
+  if (observer_)
+    observer_(record);
 }
 
 void ProgressBoard::draw() {

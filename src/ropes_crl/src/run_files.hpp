@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <mutex>
 #include <string>
@@ -51,7 +52,9 @@ void write_json_file(const fs::path& path, const nlohmann::json& j);
 /// several threads (the AE2s that train at once): each call holds the log's lock.
 class MetricsLog {
  public:
-  explicit MetricsLog(fs::path path) : path_(std::move(path)) {}
+  /// `observer` (may be empty) sees every record appended, after it is written.
+  explicit MetricsLog(fs::path path, std::function<void(const nlohmann::json&)> observer = nullptr)
+      : path_(std::move(path)), observer_(std::move(observer)) {}
   /// Keeps the records for which keep(record) is true (and only well-formed lines).
   template <class Keep>
   void truncate(Keep keep) const;
@@ -61,6 +64,7 @@ class MetricsLog {
   void rewrite(const std::vector<std::string>& lines) const;
   std::vector<std::string> lines() const;
   fs::path path_;
+  std::function<void(const nlohmann::json&)> observer_;
   mutable std::mutex mutex_;
 };
 

@@ -570,7 +570,7 @@ void train(const ExperimentConfig& config_in, const fs::path& data_dir, const fs
   nlohmann::json run = open_run(config_in, data, run_dir, options);
   const fs::path run_json = run_dir / "run.json";
   nn::remove_stale_temporaries(run_dir);
-  const MetricsLog metrics(run_dir / "metrics.jsonl");
+  const MetricsLog metrics(run_dir / "metrics.jsonl", options.on_metrics);
 
   // stage 1: AE1, then the codes
   if (!fs::exists(codes_file(run_dir))) {

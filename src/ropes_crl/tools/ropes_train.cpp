@@ -1,11 +1,17 @@
 // ropes-train: the three stages of ROPES on a dataset, into a run directory; resumable.
 #include <ropes_crl/trainer.hpp>
+#ifdef ROPES_TRAIN_STATUS
+#include <ropes_msgs/dds.hpp>
+#endif
 
 #include <unistd.h>
 
 #include <charconv>
 #include <cstdio>
 #include <iostream>
+#include <map>
+#include <memory>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -30,6 +36,9 @@ options:
                      RUN/lambda-<L>_seed-<S>
   --sweep-seeds S    comma-separated seeds for the sweep (default: --seed)
   --progress MODE    bar, lines or auto (a bar on a terminal; the default)
+  --status           publish the run's progress as RunStatus on the DDS topic
+                     ropes/run_status (ropes-echo run_status prints it); needs a build
+                     with Fast DDS
 )";
 
 struct UsageError : std::runtime_error {
@@ -83,15 +92,99 @@ void apply_override(nlohmann::json& config, const std::string& assignment) {
   *at = value;
 }
 
+#ifdef ROPES_TRAIN_STATUS
+// the run id: the run directory's name ("a/b/" is "b")
+std::string run_name(const fs::path& out) {
+  const fs::path p = fs::absolute(out).lexically_normal();
+  return p.has_filename() ? p.filename().string() : p.parent_path().filename().string();
+}
+
+// RunStatus from the run's metrics records: the stage's step and total, its losses and an
+// ETA from the stage's pace since its first record in this process
+class StatusPublisher {
+ public:
+  StatusPublisher(const ropes::crl::ExperimentConfig& config, std::string run_id)
+      : participant_({"ropes-train"}), pub_(participant_), run_id_(std::move(run_id)) {
+    totals_["ae1"] = config.ae1_training.steps;
+    totals_["ldr"] = config.ldr_training.max_epochs;
+    totals_["ae2"] = config.ae2_training.steps;
+    std::fprintf(stderr, "ropes-train: publishing RunStatus on %s, domain %d\n",
+                 ropes::msgs::kRunStatusTopic, participant_.domain());
+  }
+  void on_record(const nlohmann::json& r) {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    ropes::msgs::RunStatus s;
+    const std::string kind = r.value("stage", std::string("?"));
+    std::string stage = kind;
+    for (const char* part : {"joint", "model"})
+      if (r.contains(part) && r[part].is_string())
+        stage += " " + r[part].get<std::string>();
+    const std::int64_t step = r.contains("step") && r["step"].is_number_integer()
+                                  ? r["step"].get<std::int64_t>()
+                                  : r.value("epoch", std::int64_t{0});
+    const auto total = totals_.count(kind) ? totals_[kind] : 0;
+    std::vector<std::string> names;
+    std::vector<double> values;
+    for (const auto& [key, value] : r.items())
+      if (value.is_number_float()) {
+        names.push_back(key);
+        values.push_back(value.get<double>());
+      }
+    const auto now = std::chrono::steady_clock::now();
+    auto& [t0, s0] = first_.try_emplace(stage, now, step).first->second;
+    double eta = -1;
+    if (step > s0 && total > 0)
+      eta = std::chrono::duration<double>(now - t0).count() / static_cast<double>(step - s0) *
+            static_cast<double>(std::max<std::int64_t>(total - step, 0));
+    send(stage, step, total, names, values, eta);
+  }
+  void finish(const std::string& stage) {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    send(stage, 0, 0, {}, {}, 0);
+    pub_.wait_for_acknowledgments(std::chrono::seconds(2));
+  }
+
+ private:
+  void send(const std::string& stage, std::int64_t step, std::int64_t total,
+            const std::vector<std::string>& names, const std::vector<double>& values, double eta) {
+    ropes::msgs::RunStatus s;
+    s.stamp_ns(ropes::msgs::now_ns());
+    s.run_id(run_id_);
+    s.stage(stage);
+    s.step(step);
+    s.total_steps(total);
+    s.loss_names(names);
+    s.loss_values(values);
+    s.eta_s(eta);
+    pub_.write(s, std::chrono::milliseconds(200));  // a stuck reader never stalls training
+  }
+  ropes::msgs::Participant participant_;
+  ropes::msgs::Publisher<ropes::msgs::RunStatus> pub_;
+  std::string run_id_;
+  std::map<std::string, std::int64_t> totals_;
+  std::map<std::string, std::pair<std::chrono::steady_clock::time_point, std::int64_t>> first_;
+  std::mutex mutex_;
+};
+#endif
+
 int run(int argc, char** argv) {
   std::string config_arg, data, out, progress = "auto", sweep_lambda, sweep_seeds;
   std::vector<std::string> sets;
   ropes::crl::TrainOptions options;
+  bool status = false;
   for (int i = 1; i < argc; ++i) {
     const std::string flag = argv[i];
     if (flag == "--help" || flag == "-h") {
       std::cout << kUsage;
       return 0;
+    }
+    if (flag == "--status") {
+#ifdef ROPES_TRAIN_STATUS
+      status = true;
+      continue;
+#else
+      throw UsageError("--status: this ropes-train was built without Fast DDS (ROPES_WITH_DDS)");
+#endif
     }
     if (i + 1 >= argc)
       throw UsageError("'" + flag + "' needs a value (see --help)");
@@ -129,9 +222,29 @@ int run(int argc, char** argv) {
   nlohmann::json raw = base.raw;
   for (const std::string& s : sets)
     apply_override(raw, s);
+  if (status && !sweep_lambda.empty())
+    throw UsageError("--status is for one run, not a --sweep-lambda sweep");
   if (sweep_lambda.empty()) {
     const auto config = ropes::crl::ExperimentConfig::from_json(raw, config_arg + " (with --set)");
+#ifdef ROPES_TRAIN_STATUS
+    std::unique_ptr<StatusPublisher> publisher;
+    if (status) {
+      publisher = std::make_unique<StatusPublisher>(config, run_name(out));
+      options.on_metrics = [&](const nlohmann::json& r) { publisher->on_record(r); };
+    }
+    try {
+      ropes::crl::train(config, data, out, options);
+    } catch (...) {
+      if (publisher)
+        publisher->finish("failed");
+      throw;
+    }
+    if (publisher)
+      publisher->finish("complete");
+#else
+    (void)status;
     ropes::crl::train(config, data, out, options);
+#endif
     std::fprintf(stderr, "ropes-train: %s complete\n", out.c_str());
     return 0;
   }

@@ -10,10 +10,12 @@
 
 #include "ropes_sim/dataset_generator.hpp"
 #include "ropes_sim/renderer.hpp"
+#include "tool_common.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
+using namespace ropes::sim::tools;
 
 const char* const kUsage = R"(usage: ropes-generate --config C --out DIR --seed S [options]
        ropes-generate --config C --preview PNG [--seed S] [--anchor A]
@@ -35,38 +37,6 @@ options:
                          furthest left, right, up and down: the rig's framing check
   --scale S              --preview tile scale, an integer 1..16 (default 2)
 )";
-
-struct UsageError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
-
-template <typename T>
-T parse_number(const std::string& flag, const std::string& text, T lo, T hi) {
-  T value{};
-  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
-  if (ec != std::errc() || end != text.data() + text.size() || value < lo || value > hi)
-    throw UsageError(flag + " is '" + text + "'; expected an integer in [" + std::to_string(lo) +
-                     ", " + std::to_string(hi) + "]");
-  return value;
-}
-
-// a config given by name is looked for among the installed ones, next to this executable
-fs::path find_config(const std::string& value) {
-  if (fs::is_regular_file(value))
-    return value;
-  // next to the executable (an install tree moved elsewhere), then where it was installed
-  std::error_code ec;
-  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-  std::vector<fs::path> places;
-  if (!ec)
-    places.push_back(exe.parent_path().parent_path() / "share" / "ropes_sim" / "datasets");
-  places.push_back(fs::path(ROPES_SIM_INSTALL_DATASETS_DIR));
-  for (const fs::path& dir : places)
-    if (fs::is_regular_file(dir / (value + ".json")))
-      return dir / (value + ".json");
-  throw UsageError("--config '" + value +
-                   "' is neither a file nor an installed config name (1c, 2c, 2c_causal, ...)");
-}
 
 int run(int argc, char** argv) {
   std::string config_arg, out, preview, extremes;

@@ -43,6 +43,10 @@ struct TrainOptions {
   /// Test hook: called after each checkpoint is written with (stage, step); unset in normal
   /// use. In stage 3 it is called from the thread of each AE2, possibly at the same time.
   std::function<void(const std::string&, std::int64_t)> on_checkpoint;
+  /// Called with every record written to metrics.jsonl, right after it is written (what
+  /// ropes-train --status publishes). In stage 3 it is called from the thread of each AE2,
+  /// one call at a time.
+  std::function<void(const nlohmann::json&)> on_metrics;
 };
 
 /// Runs (or resumes) every stage of `config` on the dataset in `data_dir` into `run_dir`.

@@ -1,0 +1,383 @@
+// ropes-stream: a trained run's Estimator as a DDS node: ImageFrames in, PoseEstimates out.
+#include <ropes_crl/estimator.hpp>
+#include <ropes_msgs/dds.hpp>
+#include <ropes_nn/dataset.hpp>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace {
+
+namespace fs = std::filesystem;
+namespace msgs = ropes::msgs;
+using Clock = std::chrono::steady_clock;
+
+const char* const kUsage = R"(usage: ropes-stream --run RUN [options]
+       ropes-stream --run RUN --replay DIR [options]
+
+Loads the Estimator of the trained run RUN (ropes-train's output; its calibration from
+RUN/calibration.json, written by ropes-eval, when there is one) and answers every ImageFrame
+on ropes/image_frames with a PoseEstimate on ropes/pose_estimates. The cameras of one instant
+(one sequence number) may come in one frame or in several; an estimate is made once all the
+run's cameras are there. A frame of the wrong size, encoding or cameras is refused with a log
+line and counted in every later estimate's rejected_frames. Runs until SIGINT or SIGTERM.
+
+With --replay, reads the rows of the dataset in DIR instead (ropes-generate's output) and
+publishes, per row, its JointState (ropes/joint_states) and its estimate, then exits.
+
+options:
+  --calibration FILE        the affine calibration (default RUN/calibration.json if present;
+                            without one, estimates carry latents and no angles)
+  --run-id ID               the run id in the estimates (default: RUN's directory name)
+  --frame-qos Q             sensor (default) or reliable_all: the QoS of the frame reader,
+                            as the publisher of the frames uses
+  --estimates N             exit after N estimates
+  --wait-for-subscribers N  wait until N readers of ropes/pose_estimates are matched first
+  --rate HZ                 --replay: rows a second (default: as fast as readers take them)
+  --rows N                  --replay: the first N rows only
+The domain is ROPES_DDS_DOMAIN (default 0); ROPES_DDS_LOOPBACK=1 keeps to this host.
+)";
+
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+long long parse_count(const std::string& flag, const std::string& text) {
+  std::size_t end = 0;
+  long long v = -1;
+  try {
+    v = std::stoll(text, &end);
+  } catch (const std::exception&) {
+    end = 0;
+  }
+  if (end != text.size() || v < 1)
+    throw UsageError(flag + " is '" + text + "'; expected a positive integer");
+  return v;
+}
+
+double parse_rate(const std::string& flag, const std::string& text) {
+  std::size_t end = 0;
+  double v = -1;
+  try {
+    v = std::stod(text, &end);
+  } catch (const std::exception&) {
+    end = 0;
+  }
+  if (end != text.size() || !(v > 0 && v <= 1e5))
+    throw UsageError(flag + " is '" + text + "'; expected a rate in (0, 100000] Hz");
+  return v;
+}
+
+// one instant's cameras, as they arrive
+struct Group {
+  std::int64_t stamp_ns = 0;
+  std::vector<bool> have;
+  int count = 0;
+  std::vector<std::uint8_t> pixels;
+  Clock::time_point received;
+};
+
+class Node {
+ public:
+  Node(ropes::crl::Estimator& estimator, msgs::Publisher<msgs::PoseEstimate>& pub,
+       std::string run_id)
+      : estimator_(estimator), pub_(pub) {
+    joints_ = static_cast<std::size_t>(estimator.joints().size());
+    cameras_ = static_cast<int>(estimator.cameras());
+    size_ = static_cast<int>(estimator.image_size());
+    image_ = static_cast<std::size_t>(size_) * static_cast<std::size_t>(size_);
+    latents_.resize(joints_);
+    angles_.resize(joints_);
+    out_.run_id(std::move(run_id));
+    out_.joint_names(estimator.joints());
+  }
+
+  // why `frame` cannot be used ("" when it can)
+  std::string problem(const msgs::ImageFrame& f) const {
+    const std::size_t n = f.camera_names().size();
+    if (f.encoding() != "mono8")
+      return "encoding '" + f.encoding() + "', expected mono8";
+    if (f.width() != size_ || f.height() != size_)
+      return "size " + std::to_string(f.width()) + "x" + std::to_string(f.height()) +
+             ", the run's images are " + std::to_string(size_) + "x" + std::to_string(size_);
+    if (n == 0 || f.camera_ids().size() != n)
+      return std::to_string(n) + " camera names and " + std::to_string(f.camera_ids().size()) +
+             " camera ids, expected as many of each (at least one)";
+    if (f.pixels().size() != n * image_)
+      return std::to_string(f.pixels().size()) + " pixel bytes for " + std::to_string(n) +
+             " camera(s) of " + std::to_string(size_) + "x" + std::to_string(size_);
+    std::vector<bool> seen(static_cast<std::size_t>(cameras_), false);
+    for (const std::uint16_t id : f.camera_ids()) {
+      if (id >= cameras_)
+        return "camera id " + std::to_string(id) + ", the run has " + std::to_string(cameras_) +
+               " camera(s)";
+      if (seen[id])
+        return "camera id " + std::to_string(id) + " twice";
+      seen[id] = true;
+    }
+    return "";
+  }
+
+  void on_frame(const msgs::ImageFrame& f) {
+    const Clock::time_point received = Clock::now();
+    const std::string why = problem(f);
+    if (!why.empty())
+      return reject(f.sequence_number(), why);
+    const unsigned long long seq = f.sequence_number();
+    if (seq < done_below_ && done_below_ > 0 && groups_.count(seq) == 0)
+      return reject(seq, "sequence number already answered or given up");
+    Group& g = groups_[seq];
+    if (g.have.empty()) {
+      g.have.assign(static_cast<std::size_t>(cameras_), false);
+      g.pixels.resize(static_cast<std::size_t>(cameras_) * image_);
+      g.stamp_ns = f.stamp_ns();
+    }
+    for (std::size_t c = 0; c < f.camera_ids().size(); ++c) {
+      const std::uint16_t id = f.camera_ids()[c];
+      if (g.have[id]) {
+        groups_.erase(seq);
+        return reject(seq, "camera id " + std::to_string(id) + " sent twice for this instant");
+      }
+      g.have[id] = true;
+      ++g.count;
+      std::copy(f.pixels().begin() + static_cast<long>(c * image_),
+                f.pixels().begin() + static_cast<long>((c + 1) * image_),
+                g.pixels.begin() + static_cast<long>(id * image_));
+    }
+    g.received = received;
+    if (g.count == cameras_) {
+      const Group done = std::move(g);
+      groups_.erase(seq);
+      publish(seq, done.stamp_ns, done.pixels.data(), done.received);
+      if (seq + 1 > done_below_)
+        done_below_ = seq + 1;
+    }
+    // instants that will not complete: more than 16 behind the newest
+    while (!groups_.empty() && groups_.begin()->first + 16 < seq) {
+      const auto first = groups_.begin()->first;
+      groups_.erase(groups_.begin());
+      reject(first, "incomplete: not every camera came");
+    }
+  }
+
+  void publish(unsigned long long frame_seq, std::int64_t frame_stamp, const std::uint8_t* pixels,
+               Clock::time_point received) {
+    const bool calibrated = estimator_.calibrated();
+    estimator_.estimate_frame(pixels, latents_.data(), calibrated ? angles_.data() : nullptr);
+    out_.sequence_number(sent_);
+    out_.frame_sequence_number(frame_seq);
+    out_.frame_stamp_ns(frame_stamp);
+    out_.latents(latents_);
+    std::vector<bool> valid(joints_, false);
+    if (calibrated) {
+      out_.joint_angles(angles_);
+      for (std::size_t k = 0; k < joints_; ++k)
+        valid[k] = std::isfinite(angles_[k]);
+    }
+    out_.valid(valid);
+    out_.rejected_frames(rejected_);
+    out_.stamp_ns(msgs::now_ns());
+    const auto latency = Clock::now() - received;
+    out_.latency_ns(std::chrono::duration_cast<std::chrono::nanoseconds>(latency).count());
+    latency_s_ += std::chrono::duration<double>(latency).count();
+    if (!pub_.write(out_))
+      std::fprintf(stderr, "ropes-stream: estimate %llu: the write timed out (a reader stuck?)\n",
+                   static_cast<unsigned long long>(sent_));
+    ++sent_;
+  }
+
+  void reject(unsigned long long seq, const std::string& why) {
+    ++rejected_;
+    ++reasons_[why.substr(0, why.find_first_of("0123456789'"))];
+    if (rejected_ <= 20 || rejected_ % 1000 == 0)
+      std::fprintf(stderr, "ropes-stream: frame %llu rejected (%llu so far): %s\n", seq,
+                   static_cast<unsigned long long>(rejected_), why.c_str());
+  }
+
+  unsigned long long sent() const { return sent_; }
+  void summary(double seconds) const {
+    std::fprintf(stderr,
+                 "ropes-stream: %llu estimates in %.1f s, %llu frames rejected, mean latency "
+                 "(frame received -> estimate written) %.2f ms\n",
+                 static_cast<unsigned long long>(sent_), seconds,
+                 static_cast<unsigned long long>(rejected_),
+                 sent_ > 0 ? 1e3 * latency_s_ / static_cast<double>(sent_) : 0.0);
+    for (const auto& [reason, count] : reasons_)
+      std::fprintf(stderr, "ropes-stream:   rejected %llu x %s...\n",
+                   static_cast<unsigned long long>(count), reason.c_str());
+  }
+
+ private:
+  ropes::crl::Estimator& estimator_;
+  msgs::Publisher<msgs::PoseEstimate>& pub_;
+  std::size_t joints_ = 0, image_ = 0;
+  int cameras_ = 0, size_ = 0;
+  std::vector<float> latents_, angles_;
+  msgs::PoseEstimate out_;
+  std::map<unsigned long long, Group> groups_;
+  unsigned long long done_below_ = 0, sent_ = 0, rejected_ = 0;
+  std::map<std::string, unsigned long long> reasons_;
+  double latency_s_ = 0;
+};
+
+ropes::crl::Calibration read_calibration(const fs::path& file) {
+  std::ifstream in(file);
+  if (!in)
+    throw std::runtime_error(file.string() + ": cannot be read");
+  const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
+  if (j.is_discarded())
+    throw std::runtime_error(file.string() + ": not valid JSON");
+  try {
+    return ropes::crl::Calibration::from_json(j);
+  } catch (const std::exception& e) {
+    throw std::runtime_error(file.string() + ": " + e.what());
+  }
+}
+
+int replay(Node& node, ropes::crl::Estimator& estimator, const fs::path& dir,
+           msgs::Participant& participant, const msgs::ShutdownSignals& signals, double rate,
+           long long rows_limit) {
+  const auto reader = ropes::nn::DatasetReader::open(dir);
+  const auto& images = reader.column("images");
+  const std::vector<std::int64_t> want = {estimator.cameras(), estimator.image_size(),
+                                          estimator.image_size()};
+  if (images.row_shape != want || images.dtype != ropes::nn::DType::kU8)
+    throw std::runtime_error(dir.string() + ": its images column is not u8 rows of [" +
+                             std::to_string(want[0]) + ", " + std::to_string(want[1]) + ", " +
+                             std::to_string(want[2]) + "] (the run's cameras and image size)");
+  std::vector<std::string> names;
+  if (reader.metadata().contains("joint_names"))
+    names = reader.metadata()["joint_names"].get<std::vector<std::string>>();
+  msgs::Publisher<msgs::JointState> joint_pub(participant);
+  msgs::JointState joints;
+  joints.names(names);
+  const std::int64_t rows =
+      rows_limit > 0 ? std::min<std::int64_t>(rows_limit, reader.rows()) : reader.rows();
+  const std::size_t bytes = static_cast<std::size_t>(want[0] * want[1] * want[2]);
+  std::vector<std::uint8_t> pixels(bytes);
+  std::vector<float> angles(names.size());
+  const Clock::time_point start = Clock::now();
+  for (std::int64_t r = 0; r < rows && !signals.requested(); ++r) {
+    if (rate > 0 &&
+        signals.sleep_for(start +
+                          std::chrono::duration_cast<Clock::duration>(
+                              std::chrono::duration<double>(static_cast<double>(r) / rate)) -
+                          Clock::now()))
+      break;
+    reader.read_rows("images", r, 1, pixels.data());
+    const Clock::time_point received = Clock::now();
+    const std::int64_t stamp = msgs::now_ns();
+    if (!names.empty()) {
+      reader.read_rows("angles", r, 1, angles.data());
+      joints.stamp_ns(stamp);
+      joints.sequence_number(static_cast<unsigned long long>(r));
+      joints.positions(std::vector<double>(angles.begin(), angles.end()));
+      joint_pub.write(joints);
+    }
+    node.publish(static_cast<unsigned long long>(r), stamp, pixels.data(), received);
+  }
+  joint_pub.wait_for_acknowledgments(std::chrono::seconds(5));
+  return 0;
+}
+
+int run(int argc, char** argv) {
+  std::string run_dir, calibration, run_id, replay_dir;
+  msgs::Qos frame_qos = msgs::Qos::sensor;
+  long long estimates = -1, rows = -1;
+  int wait_for = 0;
+  double rate = 0;
+  for (int i = 1; i < argc; ++i) {
+    const std::string flag = argv[i];
+    if (flag == "--help" || flag == "-h") {
+      std::cout << kUsage;
+      return 0;
+    }
+    if (i + 1 >= argc)
+      throw UsageError("'" + flag + "' needs a value (see --help)");
+    const std::string value = argv[++i];
+    if (flag == "--run")
+      run_dir = value;
+    else if (flag == "--calibration")
+      calibration = value;
+    else if (flag == "--run-id")
+      run_id = value;
+    else if (flag == "--replay")
+      replay_dir = value;
+    else if (flag == "--estimates")
+      estimates = parse_count(flag, value);
+    else if (flag == "--rows")
+      rows = parse_count(flag, value);
+    else if (flag == "--wait-for-subscribers")
+      wait_for = static_cast<int>(parse_count(flag, value));
+    else if (flag == "--rate")
+      rate = parse_rate(flag, value);
+    else if (flag == "--frame-qos") {
+      if (value != "sensor" && value != "reliable_all")
+        throw UsageError("--frame-qos is '" + value + "'; expected sensor or reliable_all");
+      frame_qos = value == "sensor" ? msgs::Qos::sensor : msgs::Qos::reliable_all;
+    } else {
+      throw UsageError("unknown option '" + flag + "' (see --help)");
+    }
+  }
+  if (run_dir.empty())
+    throw UsageError("--run is required (see --help)");
+  auto estimator = ropes::crl::Estimator::load(run_dir);
+  if (calibration.empty() && fs::exists(fs::path(run_dir) / "calibration.json"))
+    calibration = (fs::path(run_dir) / "calibration.json").string();
+  if (!calibration.empty())
+    estimator.set_calibration(read_calibration(calibration));
+  if (run_id.empty())
+    run_id = fs::absolute(run_dir).lexically_normal().filename().string();
+  if (run_id.empty())
+    run_id = fs::absolute(run_dir).lexically_normal().parent_path().filename().string();
+
+  msgs::ShutdownSignals signals;
+  msgs::Participant participant({"ropes-stream"});
+  msgs::Publisher<msgs::PoseEstimate> pub(participant);
+  Node node(estimator, pub, run_id);
+  std::fprintf(
+      stderr, "ropes-stream: run %s (%lld camera(s) %lldx%lld, %zu joints, %s) on domain %d\n",
+      run_id.c_str(), static_cast<long long>(estimator.cameras()),
+      static_cast<long long>(estimator.image_size()),
+      static_cast<long long>(estimator.image_size()), estimator.joints().size(),
+      estimator.calibrated() ? "calibrated" : "uncalibrated: latents only", participant.domain());
+  if (wait_for > 0)
+    while (!signals.requested() &&
+           !pub.wait_for_matched(wait_for, std::chrono::milliseconds(100))) {
+    }
+  const Clock::time_point start = Clock::now();
+  int rc = 0;
+  if (!replay_dir.empty()) {
+    rc = replay(node, estimator, replay_dir, participant, signals, rate, rows);
+  } else {
+    msgs::Subscriber<msgs::ImageFrame> frames(participant, msgs::kImageFrameTopic, frame_qos);
+    msgs::ImageFrame frame;
+    while (!signals.requested() &&
+           (estimates < 0 || node.sent() < static_cast<unsigned long long>(estimates))) {
+      if (frames.take(frame, std::chrono::milliseconds(50)))
+        node.on_frame(frame);
+    }
+  }
+  pub.wait_for_acknowledgments(std::chrono::seconds(5));
+  node.summary(std::chrono::duration<double>(Clock::now() - start).count());
+  return rc;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const UsageError& e) {
+    std::cerr << "ropes-stream: " << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "ropes-stream: error: " << e.what() << "\n";
+    return 1;
+  }
+}
