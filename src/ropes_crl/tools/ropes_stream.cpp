@@ -8,6 +8,7 @@
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -239,10 +240,10 @@ ropes::crl::Calibration read_calibration(const fs::path& file) {
   }
 }
 
-int replay(Node& node, ropes::crl::Estimator& estimator, const fs::path& dir,
-           msgs::Participant& participant, const msgs::ShutdownSignals& signals, double rate,
-           long long rows_limit) {
-  const auto reader = ropes::nn::DatasetReader::open(dir);
+int replay(Node& node, ropes::crl::Estimator& estimator, const ropes::nn::DatasetReader& reader,
+           msgs::Publisher<msgs::JointState>& joint_pub, const msgs::ShutdownSignals& signals,
+           double rate, long long rows_limit) {
+  const fs::path& dir = reader.dir();
   const auto& images = reader.column("images");
   const std::vector<std::int64_t> want = {estimator.cameras(), estimator.image_size(),
                                           estimator.image_size()};
@@ -253,7 +254,6 @@ int replay(Node& node, ropes::crl::Estimator& estimator, const fs::path& dir,
   std::vector<std::string> names;
   if (reader.metadata().contains("joint_names"))
     names = reader.metadata()["joint_names"].get<std::vector<std::string>>();
-  msgs::Publisher<msgs::JointState> joint_pub(participant);
   msgs::JointState joints;
   joints.names(names);
   const std::int64_t rows =
@@ -346,14 +346,24 @@ int run(int argc, char** argv) {
       static_cast<long long>(estimator.image_size()),
       static_cast<long long>(estimator.image_size()), estimator.joints().size(),
       estimator.calibrated() ? "calibrated" : "uncalibrated: latents only", participant.domain());
-  if (wait_for > 0)
-    while (!signals.requested() &&
-           !pub.wait_for_matched(wait_for, std::chrono::milliseconds(100))) {
+  // --replay: the dataset is opened (and checked) before anything is published
+  std::unique_ptr<ropes::nn::DatasetReader> reader;
+  std::unique_ptr<msgs::Publisher<msgs::JointState>> joint_pub;
+  if (!replay_dir.empty()) {
+    reader = std::make_unique<ropes::nn::DatasetReader>(ropes::nn::DatasetReader::open(replay_dir));
+    joint_pub = std::make_unique<msgs::Publisher<msgs::JointState>>(participant);
+  }
+  if (wait_for > 0) {
+    std::fprintf(stderr, "ropes-stream: waiting for %d subscriber(s)\n", wait_for);
+    const auto step = std::chrono::milliseconds(100);
+    while (!signals.requested() && !(pub.wait_for_matched(wait_for, step) &&
+                                     (!joint_pub || joint_pub->wait_for_matched(wait_for, step)))) {
     }
+  }
   const Clock::time_point start = Clock::now();
   int rc = 0;
   if (!replay_dir.empty()) {
-    rc = replay(node, estimator, replay_dir, participant, signals, rate, rows);
+    rc = replay(node, estimator, *reader, *joint_pub, signals, rate, rows);
   } else {
     msgs::Subscriber<msgs::ImageFrame> frames(participant, msgs::kImageFrameTopic, frame_qos);
     msgs::ImageFrame frame;

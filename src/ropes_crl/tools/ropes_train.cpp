@@ -110,6 +110,8 @@ class StatusPublisher {
     totals_["ae2"] = config.ae2_training.steps;
     std::fprintf(stderr, "ropes-train: publishing RunStatus on %s, domain %d\n",
                  ropes::msgs::kRunStatusTopic, participant_.domain());
+    // a watcher started before the run sees its first records (discovery takes a moment)
+    pub_.wait_for_matched(1, std::chrono::seconds(3));
   }
   void on_record(const nlohmann::json& r) {
     const std::lock_guard<std::mutex> lock(mutex_);

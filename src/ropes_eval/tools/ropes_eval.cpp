@@ -19,6 +19,9 @@
 #include <vector>
 
 #include "suites.hpp"
+#ifdef ROPES_EVAL_LIVE
+#include "live.hpp"
+#endif
 
 namespace {
 
@@ -26,6 +29,7 @@ namespace fs = std::filesystem;
 
 const char* const kUsage = R"(usage: ropes-eval --run RUN --data DIR [options]
        ropes-eval --run RUN --suite id,ood,causal,occlusion [--out REPORT] [options]
+       ropes-eval --live [options]   (streamed estimates over DDS: ropes-eval --live --help)
 
 Evaluates the trained run in RUN on the observational samples of the dataset in DIR (one
 the run did not train on: generate it with another --seed), by the paper's protocol: each
@@ -78,6 +82,13 @@ int run(int argc, char** argv) {
   int threads = 1;
   ropes::eval::RunEvaluationOptions options;
   tools::SuiteArgs suite_args;
+  if (argc > 1 && std::string(argv[1]) == "--live") {
+#ifdef ROPES_EVAL_LIVE
+    return tools::run_live(argc, argv);
+#else
+    throw UsageError("--live: this ropes-eval was built without Fast DDS (ROPES_WITH_DDS)");
+#endif
+  }
   for (int i = 1; i < argc; ++i) {
     const std::string flag = argv[i];
     if (flag == "--help" || flag == "-h") {
