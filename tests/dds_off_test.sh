@@ -17,6 +17,22 @@ if [ -e "$scratch/install/ropes_msgs/include/ropes_msgs" ]; then
   echo "FAIL: ropes_msgs installed message headers with ROPES_WITH_DDS=OFF" >&2
   exit 1
 fi
+# no streaming executable without Fast DDS, and the flags that need it say so
+for exe in ropes_msgs/bin/ropes-echo ropes_sim/bin/ropes-sim-stream ropes_crl/bin/ropes-stream; do
+  if [ -e "$scratch/install/$exe" ]; then
+    echo "FAIL: $exe installed with ROPES_WITH_DDS=OFF" >&2
+    exit 1
+  fi
+done
+set +e
+status_out=$("$scratch/install/ropes_crl/bin/ropes-train" --status 2>&1); status_rc=$?
+live_out=$("$scratch/install/ropes_eval/bin/ropes-eval" --live 2>&1); live_rc=$?
+set -e
+if [ "$status_rc" != 2 ] || ! grep -q "built without Fast DDS" <<< "$status_out" ||
+   [ "$live_rc" != 2 ] || ! grep -q "built without Fast DDS" <<< "$live_out"; then
+  echo "FAIL: --status / --live without DDS: rc $status_rc '$status_out', rc $live_rc '$live_out'" >&2
+  exit 1
+fi
 # the packages' `slow` tests (whole presets trained end to end) touch no DDS and ran in the
 # main build; here every other test runs (colcon wants a space before the dash)
 colcon --log-base "$scratch/log" test --build-base "$scratch/build" --install-base "$scratch/install" \

@@ -130,7 +130,14 @@ class Node {
     if (!why.empty())
       return reject(f.sequence_number(), why);
     const unsigned long long seq = f.sequence_number();
-    if (seq < done_below_ && done_below_ > 0 && groups_.count(seq) == 0)
+    if (seq + 16 < done_below_) {
+      // far behind what was answered: a publisher that started again from 0
+      std::fprintf(stderr, "ropes-stream: frame sequence restarted at %llu (was at %llu)\n", seq,
+                   done_below_ - 1);
+      groups_.clear();
+      done_below_ = 0;
+    }
+    if (seq < done_below_ && groups_.count(seq) == 0)
       return reject(seq, "sequence number already answered or given up");
     Group& g = groups_[seq];
     if (g.have.empty()) {

@@ -11,11 +11,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include <fcntl.h>
 #include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -28,62 +24,16 @@
 #include <thread>
 #include <vector>
 
-extern char** environ;
+#include "child_process.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
 namespace msgs = ropes::msgs;
+using ropes::eval::testing::Child;
 using namespace std::chrono_literals;
 
 const fs::path kDir = ROPES_EVAL_STREAM_TEST_DIR;
-
-// a child process; stdout and stderr into `log` when given
-class Child {
- public:
-  Child(std::vector<std::string> args, const fs::path& log = {}) {
-    std::vector<char*> argv;
-    for (auto& a : args)
-      argv.push_back(a.data());
-    argv.push_back(nullptr);
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    if (!log.empty()) {
-      posix_spawn_file_actions_addopen(&actions, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC,
-                                       0644);
-      posix_spawn_file_actions_adddup2(&actions, 1, 2);
-    }
-    if (posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ) != 0)
-      pid_ = -1;
-    posix_spawn_file_actions_destroy(&actions);
-  }
-  ~Child() {
-    if (pid_ > 0) {
-      ::kill(pid_, SIGKILL);
-      ::waitpid(pid_, nullptr, 0);
-    }
-  }
-  bool running() {
-    int status = 0;
-    if (pid_ > 0 && ::waitpid(pid_, &status, WNOHANG) == pid_) {
-      pid_ = -1;
-      status_ = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    }
-    return pid_ > 0;
-  }
-  void signal(int sig) { ::kill(pid_, sig); }
-  // the exit status; -1 when killed by a signal or still running after `timeout`
-  int wait(std::chrono::seconds timeout) {
-    const auto end = std::chrono::steady_clock::now() + timeout;
-    while (running() && std::chrono::steady_clock::now() < end)
-      std::this_thread::sleep_for(10ms);
-    return running() ? -1 : status_;
-  }
-
- private:
-  pid_t pid_ = -1;
-  int status_ = -1;
-};
 
 int run_to_end(std::vector<std::string> args, const fs::path& log) {
   Child c(std::move(args), log);
