@@ -19,6 +19,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <set>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -344,6 +345,42 @@ TEST(StreamingNode, TrainingPublishesItsStatusStageByStage) {
       kinds.push_back(kind);
   }
   EXPECT_EQ(kinds, (std::vector<std::string>{"ae1", "ldr", "ae2"}));
+}
+
+std::set<std::string> shm_entries() {
+  std::set<std::string> out;
+  for (const auto& e : fs::directory_iterator("/dev/shm"))
+    out.insert(e.path().filename().string());
+  return out;
+}
+
+TEST(StreamingNode, TheDemoNodesStopCleanlyOnSigtermAndLeaveNoSharedMemory) {
+  const fs::path run = tiny_run("1c");
+  const std::set<std::string> before = shm_entries();
+  {
+    Child node({ROPES_STREAM_EXE, "--run", run.string()}, kDir / "demo-node.log");
+    Child echo({ROPES_ECHO_EXE, "pose_estimates"}, kDir / "demo-echo.log");
+    Child sim({ROPES_SIM_STREAM_EXE, "--config", "tiny-1c"}, kDir / "demo-sim.log");
+    // until the echo has printed estimates: the three are talking over shared memory
+    const auto end = std::chrono::steady_clock::now() + 30s;
+    while (text_of(kDir / "demo-echo.log").find("estimate 5 ") == std::string::npos &&
+           std::chrono::steady_clock::now() < end)
+      std::this_thread::sleep_for(50ms);
+    EXPECT_NE(text_of(kDir / "demo-echo.log").find("estimate 5 "), std::string::npos)
+        << text_of(kDir / "demo-echo.log") << text_of(kDir / "demo-node.log");
+    sim.signal(SIGTERM);
+    node.signal(SIGTERM);
+    echo.signal(SIGINT);
+    EXPECT_EQ(sim.wait(20s), 0) << text_of(kDir / "demo-sim.log");
+    EXPECT_EQ(node.wait(20s), 0) << text_of(kDir / "demo-node.log");
+    EXPECT_EQ(echo.wait(20s), 0) << text_of(kDir / "demo-echo.log");
+  }
+  std::vector<std::string> left;
+  for (const std::string& e : shm_entries())
+    if (before.count(e) == 0)
+      left.push_back(e);
+  EXPECT_TRUE(left.empty()) << left.size() << " new entries in /dev/shm, the first " << left[0];
+  EXPECT_NE(text_of(kDir / "demo-sim.log").find("(stopped by a signal)"), std::string::npos);
 }
 
 }  // namespace

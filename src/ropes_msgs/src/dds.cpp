@@ -43,6 +43,14 @@ const char* qos_name(Qos qos) {
   return qos == Qos::reliable_all ? "reliable_all" : "sensor";
 }
 
+Qos qos_from_name(const std::string& text) {
+  if (text == "reliable_all")
+    return Qos::reliable_all;
+  if (text == "sensor")
+    return Qos::sensor;
+  throw std::invalid_argument("QoS '" + text + "'; expected sensor or reliable_all");
+}
+
 int domain_from_environment() {
   const std::string text = env("ROPES_DDS_DOMAIN");
   if (text.empty())
@@ -68,33 +76,47 @@ bool loopback_from_environment() {
   throw DdsError("ROPES_DDS_LOOPBACK is '" + text + "'; expected 0 or 1");
 }
 
+bool shm_from_environment() {
+  const std::string text = env("ROPES_DDS_SHM");
+  if (text.empty() || text == "1")
+    return true;
+  if (text == "0")
+    return false;
+  throw DdsError("ROPES_DDS_SHM is '" + text + "'; expected 0 or 1");
+}
+
 Participant::Participant(const ParticipantOptions& options)
     : domain_(options.domain < 0 ? domain_from_environment() : options.domain),
-      loopback_(options.loopback < 0 ? loopback_from_environment() : options.loopback != 0) {
+      loopback_(options.loopback < 0 ? loopback_from_environment() : options.loopback != 0),
+      shm_(options.shm < 0 ? shm_from_environment() : options.shm != 0) {
   dds::DomainParticipantQos qos = dds::PARTICIPANT_QOS_DEFAULT;
   qos.name(options.name);
   auto& builtin = qos.wire_protocol().builtin;
   // a peer killed without a goodbye is dropped after 5 s, not Fast DDS's default 20 s
   builtin.discovery_config.leaseDuration = Duration_t(5, 0);
   builtin.discovery_config.leaseDuration_announcementperiod = Duration_t(1, 0);
-  if (loopback_) {
+  if (loopback_ || !shm_) {
     qos.transport().use_builtin_transports = false;
-    auto shm = std::make_shared<eprosima::fastdds::rtps::SharedMemTransportDescriptor>();
+    if (shm_)
+      qos.transport().user_transports.push_back(
+          std::make_shared<eprosima::fastdds::rtps::SharedMemTransportDescriptor>());
     auto udp = std::make_shared<eprosima::fastdds::rtps::UDPv4TransportDescriptor>();
-    udp->interfaceWhiteList.emplace_back("127.0.0.1");
-    udp->maxInitialPeersRange = 32;  // participants on one host that find each other
-    qos.transport().user_transports.push_back(shm);
+    if (loopback_) {
+      udp->interfaceWhiteList.emplace_back("127.0.0.1");
+      udp->maxInitialPeersRange = 32;  // participants on one host that find each other
+      eprosima::fastrtps::rtps::Locator_t peer;
+      peer.kind = LOCATOR_KIND_UDPv4;
+      eprosima::fastrtps::rtps::IPLocator::setIPv4(peer, 127, 0, 0, 1);
+      builtin.initialPeersList.push_back(peer);
+    }
     qos.transport().user_transports.push_back(udp);
-    eprosima::fastrtps::rtps::Locator_t peer;
-    peer.kind = LOCATOR_KIND_UDPv4;
-    eprosima::fastrtps::rtps::IPLocator::setIPv4(peer, 127, 0, 0, 1);
-    builtin.initialPeersList.push_back(peer);
   }
   participant_ = dds::DomainParticipantFactory::get_instance()->create_participant(
       static_cast<dds::DomainId_t>(domain_), qos);
   if (participant_ == nullptr)
     throw DdsError("Fast DDS could not create a participant '" + options.name + "' on domain " +
-                   std::to_string(domain_) + (loopback_ ? " (loopback profile)" : ""));
+                   std::to_string(domain_) + (loopback_ ? " (loopback profile)" : "") +
+                   (shm_ ? "" : " (no shared memory)"));
 }
 
 Participant::~Participant() {

@@ -27,13 +27,19 @@ using namespace std::chrono_literals;
 // a child process running the test peer (ROPES_MSGS_PEER, set by CMake)
 class Child {
  public:
-  explicit Child(std::vector<std::string> args) {
+  explicit Child(std::vector<std::string> args, std::vector<std::string> extra_env = {}) {
     args.insert(args.begin(), ROPES_MSGS_PEER);
     std::vector<char*> argv;
     for (auto& a : args)
       argv.push_back(a.data());
     argv.push_back(nullptr);
-    if (posix_spawn(&pid_, argv[0], nullptr, nullptr, argv.data(), environ) != 0)
+    std::vector<char*> envp;
+    for (char** e = environ; *e != nullptr; ++e)
+      envp.push_back(*e);
+    for (auto& e : extra_env)
+      envp.push_back(e.data());
+    envp.push_back(nullptr);
+    if (posix_spawn(&pid_, argv[0], nullptr, nullptr, argv.data(), envp.data()) != 0)
       pid_ = -1;
   }
   ~Child() {
@@ -131,7 +137,9 @@ TEST(RopesDds, SubscriberKilledAndRestartedGetsTheStreamAgain) {
     }
   });
   {
-    Child first({"subscribe-any", "100000000"});
+    // UDP only: a process killed with SIGKILL while it touches a Fast DDS 2.9 shared-memory
+    // port can leave the port's lock taken for good (the README's note on SIGKILL)
+    Child first({"subscribe-any", "100000000"}, {"ROPES_DDS_SHM=0"});
     ASSERT_TRUE(pub.wait_for_matched(1, 20s));
     std::this_thread::sleep_for(300ms);
     first.signal(SIGKILL);
@@ -181,6 +189,13 @@ TEST(RopesDds, EnvironmentIsCheckedWithAClearMessage) {
   EXPECT_THROW(loopback_from_environment(), DdsError);
   ::setenv("ROPES_DDS_LOOPBACK", "1", 1);
   EXPECT_TRUE(loopback_from_environment());
+  ::setenv("ROPES_DDS_SHM", "no", 1);
+  EXPECT_THROW(shm_from_environment(), DdsError);
+  ::setenv("ROPES_DDS_SHM", "0", 1);
+  EXPECT_FALSE(shm_from_environment());
+  EXPECT_EQ(qos_from_name("sensor"), Qos::sensor);
+  EXPECT_EQ(qos_from_name(qos_name(Qos::reliable_all)), Qos::reliable_all);
+  EXPECT_THROW(qos_from_name("reliable"), std::invalid_argument);
 }
 
 }  // namespace

@@ -74,9 +74,11 @@ int run(int argc, char** argv) {
     else if (flag == "--wait-for-subscribers")
       wait_for = parse_number<int>(flag, value, 0, 1000);
     else if (flag == "--frame-qos") {
-      if (value != "sensor" && value != "reliable_all")
-        throw UsageError("--frame-qos is '" + value + "'; expected sensor or reliable_all");
-      frame_qos = value == "sensor" ? msgs::Qos::sensor : msgs::Qos::reliable_all;
+      try {
+        frame_qos = msgs::qos_from_name(value);
+      } catch (const std::invalid_argument& e) {
+        throw UsageError(std::string("--frame-qos: ") + e.what());
+      }
     } else {
       throw UsageError("unknown option '" + flag + "' (see --help)");
     }

@@ -11,6 +11,8 @@
 ///                       discovery by unicast to 127.0.0.1 (the profile of the tests); 0 or
 ///                       unset: Fast DDS's default transports (multicast discovery, every
 ///                       interface, shared memory)
+///   ROPES_DDS_SHM       0: no shared-memory transport (UDP only; for a peer that may be
+///                       killed with SIGKILL, see the README); 1 or unset: shared memory too
 ///
 /// Lifetimes: a Participant outlives the Publishers and Subscribers made on it. Every entity
 /// is deleted by its destructor, so a process that returns from main (after SIGINT or SIGTERM,
@@ -48,6 +50,8 @@ class DdsError : public std::runtime_error {
 /// a slow reader sees the newest samples and the writer never waits.
 enum class Qos { reliable_all, sensor };
 const char* qos_name(Qos qos);
+/// "reliable_all" or "sensor" -> the preset; std::invalid_argument naming `text` otherwise.
+Qos qos_from_name(const std::string& text);
 
 /// The topics of the workspace and the QoS each is published with (the README's table).
 inline constexpr const char* kImageFrameTopic = "ropes/image_frames";      // sensor
@@ -88,11 +92,14 @@ struct MessageType<RunStatus> {
 int domain_from_environment();
 /// ROPES_DDS_LOOPBACK: true for "1", false for "0" or unset; DdsError for anything else.
 bool loopback_from_environment();
+/// ROPES_DDS_SHM: false for "0", true for "1" or unset; DdsError for anything else.
+bool shm_from_environment();
 
 struct ParticipantOptions {
   std::string name = "ropes";
   int domain = -1;    ///< < 0: domain_from_environment()
   int loopback = -1;  ///< < 0: loopback_from_environment(); 0 or 1 otherwise
+  int shm = -1;       ///< < 0: shm_from_environment(); 0 or 1 otherwise
 };
 
 class Participant {
@@ -105,12 +112,13 @@ class Participant {
 
   int domain() const { return domain_; }
   bool loopback() const { return loopback_; }
+  bool shm() const { return shm_; }
   eprosima::fastdds::dds::DomainParticipant& native() { return *participant_; }
 
  private:
   friend class Endpoint;
   int domain_;
-  bool loopback_;
+  bool loopback_, shm_;
   eprosima::fastdds::dds::DomainParticipant* participant_ = nullptr;
 };
 
