@@ -34,7 +34,8 @@ publishes, per row, its JointState (ropes/joint_states) and its estimate, then e
 options:
   --calibration FILE        the affine calibration (default RUN/calibration.json if present;
                             without one, estimates carry latents and no angles)
-  --run-id ID               the run id in the estimates (default: RUN's directory name)
+  --run-id ID               the run id in the estimates (default: RUN's directory name, or
+                            its parent's for ropes-run's OUT/run)
   --frame-qos Q             sensor (default) or reliable_all: the QoS of the frame reader,
                             as the publisher of the frames uses
   --estimates N             exit after N estimates
@@ -340,10 +341,13 @@ int run(int argc, char** argv) {
     calibration = (fs::path(run_dir) / "calibration.json").string();
   if (!calibration.empty())
     estimator.set_calibration(read_calibration(calibration));
-  if (run_id.empty())
-    run_id = fs::absolute(run_dir).lexically_normal().filename().string();
-  if (run_id.empty())
-    run_id = fs::absolute(run_dir).lexically_normal().parent_path().filename().string();
+  if (run_id.empty()) {
+    // the directory's name; ropes-run's OUT/run is called by OUT's
+    fs::path p = fs::absolute(run_dir).lexically_normal();
+    if (!p.has_filename())
+      p = p.parent_path();
+    run_id = p.filename() == "run" ? p.parent_path().filename().string() : p.filename().string();
+  }
 
   msgs::ShutdownSignals signals;
   msgs::Participant participant({"ropes-stream"});

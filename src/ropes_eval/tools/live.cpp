@@ -263,8 +263,12 @@ int run_live(int argc, char** argv) {
       last_print = now;
     }
   }
+  // what had already arrived when the loop ended counts too (up to --estimates)
   while (truths.take(s, std::chrono::milliseconds(0)))
     live.on_truth(s);
+  while ((limit < 0 || live.matched() < static_cast<unsigned long long>(limit)) &&
+         estimates.take(e, std::chrono::milliseconds(0)))
+    live.on_estimate(e);
   std::printf("%s\n", live.line().c_str());
   write_text(out, live.to_json().dump(2) + "\n");
   std::fprintf(stderr, "ropes-eval: wrote %s\n", out.c_str());
