@@ -13,6 +13,7 @@
 #include <mutex>
 #include <thread>
 
+#include "dataset_setup.hpp"
 #include "json_config.hpp"
 #include "ropes_nn/dataset.hpp"
 #include "ropes_nn/npy.hpp"
@@ -31,51 +32,7 @@ namespace {
 
 using Json = nlohmann::json;
 namespace fs = std::filesystem;
-
-// what every run needs, loaded once
-struct Setup {
-  RobotModel model;
-  InterventionSampler sampler;
-  std::vector<int> coordinate_of_joint;  // sampler joint -> model coordinate
-  int regimes = 0, cameras = 0, width = 0, height = 0, joints = 0;
-
-  Setup(const DatasetConfig& config)
-      : model(RobotModel::load(config.robot)),
-        sampler(InterventionSampler::load(config.distribution)) {
-    const auto& movable = model.movable_joints();
-    for (const std::string& name : sampler.joint_names()) {
-      int found = -1;
-      for (std::size_t c = 0; c < movable.size(); ++c)
-        if (model.joints()[static_cast<std::size_t>(movable[c])].name == name)
-          found = static_cast<int>(c);
-      if (found < 0)
-        throw ConfigError(config.distribution.string() + ": joint '" + name +
-                          "' is not a movable joint of robot '" + model.name() + "' (" +
-                          config.robot.string() + ")");
-      coordinate_of_joint.push_back(found);
-    }
-    regimes = static_cast<int>(sampler.regime_names().size());
-    cameras = static_cast<int>(config.rig.cameras.size());
-    width = config.rig.width;
-    height = config.rig.height;
-    joints = static_cast<int>(sampler.joint_names().size());
-  }
-
-  // the model's coordinates for one sampled configuration (other joints at 0)
-  std::vector<double> coordinates(const std::vector<double>& q) const {
-    std::vector<double> out(model.movable_joints().size(), 0.0);
-    for (std::size_t j = 0; j < q.size(); ++j)
-      out[static_cast<std::size_t>(coordinate_of_joint[j])] = q[j];
-    return out;
-  }
-
-  std::vector<nn::ColumnSpec> columns() const {
-    return {{"images", nn::DType::kU8, {cameras, height, width}},
-            {"angles", nn::DType::kF32, {joints}},
-            {"regime", nn::DType::kI32, {}},
-            {"anchor", nn::DType::kI64, {}}};
-  }
-};
+using detail::Setup;
 
 // a thread with its own Kinematics and Renderer (an OSMesa context stays on its thread)
 struct Worker {

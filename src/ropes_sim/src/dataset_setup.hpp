@@ -1,0 +1,59 @@
+#pragma once
+// What the dataset generator and RigRenderer share: a config's robot and distribution, and
+// the map from the distribution's joints to the model's coordinates (private to ropes_sim).
+#include <string>
+#include <vector>
+
+#include "ropes_nn/dataset.hpp"
+#include "ropes_sim/dataset_config.hpp"
+#include "ropes_sim/intervention_sampler.hpp"
+#include "ropes_sim/robot_model.hpp"
+
+namespace ropes::sim::detail {
+
+// what every run needs, loaded once
+struct Setup {
+  RobotModel model;
+  InterventionSampler sampler;
+  std::vector<int> coordinate_of_joint;  // sampler joint -> model coordinate
+  int regimes = 0, cameras = 0, width = 0, height = 0, joints = 0;
+
+  explicit Setup(const DatasetConfig& config)
+      : model(RobotModel::load(config.robot)),
+        sampler(InterventionSampler::load(config.distribution)) {
+    const auto& movable = model.movable_joints();
+    for (const std::string& name : sampler.joint_names()) {
+      int found = -1;
+      for (std::size_t c = 0; c < movable.size(); ++c)
+        if (model.joints()[static_cast<std::size_t>(movable[c])].name == name)
+          found = static_cast<int>(c);
+      if (found < 0)
+        throw ConfigError(config.distribution.string() + ": joint '" + name +
+                          "' is not a movable joint of robot '" + model.name() + "' (" +
+                          config.robot.string() + ")");
+      coordinate_of_joint.push_back(found);
+    }
+    regimes = static_cast<int>(sampler.regime_names().size());
+    cameras = static_cast<int>(config.rig.cameras.size());
+    width = config.rig.width;
+    height = config.rig.height;
+    joints = static_cast<int>(sampler.joint_names().size());
+  }
+
+  // the model's coordinates for one sampled configuration (other joints at 0)
+  std::vector<double> coordinates(const std::vector<double>& q) const {
+    std::vector<double> out(model.movable_joints().size(), 0.0);
+    for (std::size_t j = 0; j < q.size(); ++j)
+      out[static_cast<std::size_t>(coordinate_of_joint[j])] = q[j];
+    return out;
+  }
+
+  std::vector<nn::ColumnSpec> columns() const {
+    return {{"images", nn::DType::kU8, {cameras, height, width}},
+            {"angles", nn::DType::kF32, {joints}},
+            {"regime", nn::DType::kI32, {}},
+            {"anchor", nn::DType::kI64, {}}};
+  }
+};
+
+}  // namespace ropes::sim::detail
