@@ -115,7 +115,6 @@ class StatusPublisher {
   }
   void on_record(const nlohmann::json& r) {
     const std::lock_guard<std::mutex> lock(mutex_);
-    ropes::msgs::RunStatus s;
     const std::string kind = r.value("stage", std::string("?"));
     std::string stage = kind;
     for (const char* part : {"joint", "model"})

@@ -232,6 +232,17 @@ TEST(StreamingNode, BadFramesAreRefusedCountedAndLoggedWithoutStoppingTheNode) {
   EXPECT_EQ(e.frame_sequence_number(), 6u);
   EXPECT_EQ(e.rejected_frames(), 5u) << "the estimate stream counts the refused frames";
   expect_offline_estimate(estimator, sent[6].pixels().data(), e);
+  // a publisher that starts again from 0 after the node answered up to 40: a new stream,
+  // not frames already answered
+  ASSERT_TRUE(pub.write(frame(40, s, {0})));
+  ASSERT_TRUE(estimates.take(e, 20s)) << text_of(log);
+  EXPECT_EQ(e.frame_sequence_number(), 40u);
+  const msgs::ImageFrame again = frame(0, s, {0});
+  ASSERT_TRUE(pub.write(again));
+  ASSERT_TRUE(estimates.take(e, 20s)) << text_of(log);
+  EXPECT_EQ(e.frame_sequence_number(), 0u);
+  EXPECT_EQ(e.rejected_frames(), 5u);
+  expect_offline_estimate(estimator, again.pixels().data(), e);
   EXPECT_FALSE(estimates.take(e, 500ms));
   EXPECT_TRUE(node.running()) << "a bad frame stopped the node";
   node.signal(SIGINT);
@@ -345,6 +356,38 @@ TEST(StreamingNode, TrainingPublishesItsStatusStageByStage) {
       kinds.push_back(kind);
   }
   EXPECT_EQ(kinds, (std::vector<std::string>{"ae1", "ldr", "ae2"}));
+}
+
+TEST(StreamingNode, BadCommandLinesAndRunsAreRefusedWithAClearMessage) {
+  struct Case {
+    std::vector<std::string> args;
+    int rc;
+    std::string message;
+  };
+  const std::vector<Case> cases = {
+      {{ROPES_STREAM_EXE}, 2, "--run is required"},
+      {{ROPES_STREAM_EXE, "--run", (kDir / "no-such-run").string()}, 1, "no-such-run"},
+      {{ROPES_STREAM_EXE, "--run", "x", "--frame-qos", "fast"},
+       2,
+       "--frame-qos: QoS 'fast'; expected sensor or reliable_all"},
+      {{ROPES_STREAM_EXE, "--run", "x", "--rate", "0"}, 2, "--rate is '0'"},
+      {{ROPES_SIM_STREAM_EXE, "--config", "tiny-1c", "--rate", "-3"}, 2, "--rate is '-3'"},
+      {{ROPES_SIM_STREAM_EXE, "--config", "no-such-config"}, 2, "'no-such-config' is neither"},
+      {{ROPES_ECHO_EXE, "frames"}, 2, "TOPIC is 'frames'; expected image_frames"},
+      {{ROPES_ECHO_EXE, "pose_estimates", "--count", "0"}, 2, "--count is '0'"},
+      {{ROPES_EVAL_EXE, "--live", "--window", "2"}, 2, "--window is 2; expected at least 3"},
+  };
+  fs::create_directories(kDir);
+  for (const Case& c : cases) {
+    const fs::path log = kDir / "cli.log";
+    EXPECT_EQ(run_to_end(c.args, log), c.rc) << c.args[0] << " " << c.args.back();
+    const std::string text = text_of(log);
+    EXPECT_NE(text.find(c.message), std::string::npos) << "'" << c.message << "' not in " << text;
+  }
+  // a bad domain in the environment is named before anything starts
+  ::setenv("ROPES_DDS_DOMAIN", "999", 1);
+  EXPECT_EQ(run_to_end({ROPES_ECHO_EXE, "pose_estimates"}, kDir / "cli.log"), 1);
+  EXPECT_NE(text_of(kDir / "cli.log").find("ROPES_DDS_DOMAIN is '999'"), std::string::npos);
 }
 
 std::set<std::string> shm_entries() {
