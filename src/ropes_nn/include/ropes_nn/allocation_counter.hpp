@@ -7,6 +7,10 @@
 /// Eigen's aligned blocks and ropes_nn's buffer pool included); this header defines them,
 /// interposing glibc's, and counts the calls. Include it in exactly one source file of an
 /// executable — never of a library, never twice (the definitions would clash at link time).
+///
+/// Under AddressSanitizer the header defines nothing: ASan owns malloc, and an interposer
+/// on glibc's allocator would hand ASan blocks it never made. `available` is then false,
+/// and a test that needs the count skips (ci/test --sanitize builds that way).
 #include <atomic>
 #include <cerrno>
 #include <cstddef>
@@ -22,7 +26,22 @@ void* __libc_pvalloc(std::size_t);
 void __libc_free(void*);
 }
 
+#if defined(__SANITIZE_ADDRESS__)
+#define ROPES_ALLOCATION_COUNTER_OFF 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define ROPES_ALLOCATION_COUNTER_OFF 1
+#endif
+#endif
+
 namespace ropes::nn::allocation_counter {
+
+/// False in a sanitizer build, where nothing is counted (stop() returns 0).
+#if defined(ROPES_ALLOCATION_COUNTER_OFF)
+inline constexpr bool available = false;
+#else
+inline constexpr bool available = true;
+#endif
 
 namespace detail {
 inline std::atomic<bool> counting{false};
@@ -46,6 +65,7 @@ inline std::uint64_t stop() {
 
 }  // namespace ropes::nn::allocation_counter
 
+#if !defined(ROPES_ALLOCATION_COUNTER_OFF)
 extern "C" {
 void* malloc(std::size_t n) noexcept {
   ::ropes::nn::allocation_counter::detail::note();
@@ -97,3 +117,4 @@ void free(void* p) noexcept {
   __libc_free(p);
 }
 }
+#endif  // !ROPES_ALLOCATION_COUNTER_OFF
