@@ -3,6 +3,8 @@
 #include <ropes_msgs/dds.hpp>
 #include <ropes_nn/dataset.hpp>
 
+#include "frame_grouper.hpp"
+
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -16,7 +18,7 @@ namespace {
 
 namespace fs = std::filesystem;
 namespace msgs = ropes::msgs;
-using Clock = std::chrono::steady_clock;
+using ropes::crl::stream::Clock;
 
 const char* const kUsage = R"(usage: ropes-stream --run RUN [options]
        ropes-stream --run RUN --replay DIR [options]
@@ -75,104 +77,23 @@ double parse_rate(const std::string& flag, const std::string& text) {
   return v;
 }
 
-// one instant's cameras, as they arrive
-struct Group {
-  std::int64_t stamp_ns = 0;
-  std::vector<bool> have;
-  int count = 0;
-  std::vector<std::uint8_t> pixels;
-  Clock::time_point received;
-};
-
 class Node {
  public:
   Node(ropes::crl::Estimator& estimator, msgs::Publisher<msgs::PoseEstimate>& pub,
        std::string run_id)
-      : estimator_(estimator), pub_(pub) {
+      : estimator_(estimator),
+        pub_(pub),
+        grouper_(static_cast<int>(estimator.cameras()), static_cast<int>(estimator.image_size()),
+                 [this](unsigned long long seq, std::int64_t stamp, const std::uint8_t* pixels,
+                        Clock::time_point received) { publish(seq, stamp, pixels, received); }) {
     joints_ = static_cast<std::size_t>(estimator.joints().size());
-    cameras_ = static_cast<int>(estimator.cameras());
-    size_ = static_cast<int>(estimator.image_size());
-    image_ = static_cast<std::size_t>(size_) * static_cast<std::size_t>(size_);
     latents_.resize(joints_);
     angles_.resize(joints_);
     out_.run_id(std::move(run_id));
     out_.joint_names(estimator.joints());
   }
 
-  // why `frame` cannot be used ("" when it can)
-  std::string problem(const msgs::ImageFrame& f) const {
-    const std::size_t n = f.camera_names().size();
-    if (f.encoding() != "mono8")
-      return "encoding '" + f.encoding() + "', expected mono8";
-    if (f.width() != size_ || f.height() != size_)
-      return "size " + std::to_string(f.width()) + "x" + std::to_string(f.height()) +
-             ", the run's images are " + std::to_string(size_) + "x" + std::to_string(size_);
-    if (n == 0 || f.camera_ids().size() != n)
-      return std::to_string(n) + " camera names and " + std::to_string(f.camera_ids().size()) +
-             " camera ids, expected as many of each (at least one)";
-    if (f.pixels().size() != n * image_)
-      return std::to_string(f.pixels().size()) + " pixel bytes for " + std::to_string(n) +
-             " camera(s) of " + std::to_string(size_) + "x" + std::to_string(size_);
-    std::vector<bool> seen(static_cast<std::size_t>(cameras_), false);
-    for (const std::uint16_t id : f.camera_ids()) {
-      if (id >= cameras_)
-        return "camera id " + std::to_string(id) + ", the run has " + std::to_string(cameras_) +
-               " camera(s)";
-      if (seen[id])
-        return "camera id " + std::to_string(id) + " twice";
-      seen[id] = true;
-    }
-    return "";
-  }
-
-  void on_frame(const msgs::ImageFrame& f) {
-    const Clock::time_point received = Clock::now();
-    const std::string why = problem(f);
-    if (!why.empty())
-      return reject(f.sequence_number(), why);
-    const unsigned long long seq = f.sequence_number();
-    if (seq + 16 < done_below_) {
-      // far behind what was answered: a publisher that started again from 0
-      std::fprintf(stderr, "ropes-stream: frame sequence restarted at %llu (was at %llu)\n", seq,
-                   done_below_ - 1);
-      groups_.clear();
-      done_below_ = 0;
-    }
-    if (seq < done_below_ && groups_.count(seq) == 0)
-      return reject(seq, "sequence number already answered or given up");
-    Group& g = groups_[seq];
-    if (g.have.empty()) {
-      g.have.assign(static_cast<std::size_t>(cameras_), false);
-      g.pixels.resize(static_cast<std::size_t>(cameras_) * image_);
-      g.stamp_ns = f.stamp_ns();
-    }
-    for (std::size_t c = 0; c < f.camera_ids().size(); ++c) {
-      const std::uint16_t id = f.camera_ids()[c];
-      if (g.have[id]) {
-        groups_.erase(seq);
-        return reject(seq, "camera id " + std::to_string(id) + " sent twice for this instant");
-      }
-      g.have[id] = true;
-      ++g.count;
-      std::copy(f.pixels().begin() + static_cast<long>(c * image_),
-                f.pixels().begin() + static_cast<long>((c + 1) * image_),
-                g.pixels.begin() + static_cast<long>(id * image_));
-    }
-    g.received = received;
-    if (g.count == cameras_) {
-      const Group done = std::move(g);
-      groups_.erase(seq);
-      publish(seq, done.stamp_ns, done.pixels.data(), done.received);
-      if (seq + 1 > done_below_)
-        done_below_ = seq + 1;
-    }
-    // instants that will not complete: more than 16 behind the newest
-    while (!groups_.empty() && groups_.begin()->first + 16 < seq) {
-      const auto first = groups_.begin()->first;
-      groups_.erase(groups_.begin());
-      reject(first, "incomplete: not every camera came");
-    }
-  }
+  void on_frame(const msgs::ImageFrame& f) { grouper_.on_frame(f); }
 
   void publish(unsigned long long frame_seq, std::int64_t frame_stamp, const std::uint8_t* pixels,
                Clock::time_point received) {
@@ -189,7 +110,7 @@ class Node {
         valid[k] = std::isfinite(angles_[k]);
     }
     out_.valid(valid);
-    out_.rejected_frames(rejected_);
+    out_.rejected_frames(grouper_.rejected());
     out_.stamp_ns(msgs::now_ns());
     const auto latency = Clock::now() - received;
     out_.latency_ns(std::chrono::duration_cast<std::chrono::nanoseconds>(latency).count());
@@ -200,23 +121,15 @@ class Node {
     ++sent_;
   }
 
-  void reject(unsigned long long seq, const std::string& why) {
-    ++rejected_;
-    ++reasons_[why.substr(0, why.find_first_of("0123456789'"))];
-    if (rejected_ <= 20 || rejected_ % 1000 == 0)
-      std::fprintf(stderr, "ropes-stream: frame %llu rejected (%llu so far): %s\n", seq,
-                   static_cast<unsigned long long>(rejected_), why.c_str());
-  }
-
   unsigned long long sent() const { return sent_; }
   void summary(double seconds) const {
     std::fprintf(stderr,
                  "ropes-stream: %llu estimates in %.1f s, %llu frames rejected, mean latency "
                  "(frame received -> estimate written) %.2f ms\n",
                  static_cast<unsigned long long>(sent_), seconds,
-                 static_cast<unsigned long long>(rejected_),
+                 static_cast<unsigned long long>(grouper_.rejected()),
                  sent_ > 0 ? 1e3 * latency_s_ / static_cast<double>(sent_) : 0.0);
-    for (const auto& [reason, count] : reasons_)
+    for (const auto& [reason, count] : grouper_.reasons())
       std::fprintf(stderr, "ropes-stream:   rejected %llu x %s...\n",
                    static_cast<unsigned long long>(count), reason.c_str());
   }
@@ -224,13 +137,11 @@ class Node {
  private:
   ropes::crl::Estimator& estimator_;
   msgs::Publisher<msgs::PoseEstimate>& pub_;
-  std::size_t joints_ = 0, image_ = 0;
-  int cameras_ = 0, size_ = 0;
+  ropes::crl::stream::FrameGrouper grouper_;
+  std::size_t joints_ = 0;
   std::vector<float> latents_, angles_;
   msgs::PoseEstimate out_;
-  std::map<unsigned long long, Group> groups_;
-  unsigned long long done_below_ = 0, sent_ = 0, rejected_ = 0;
-  std::map<std::string, unsigned long long> reasons_;
+  unsigned long long sent_ = 0;
   double latency_s_ = 0;
 };
 
