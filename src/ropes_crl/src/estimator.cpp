@@ -65,15 +65,20 @@ void load_weights(Net& net, const fs::path& path) {
 
 Estimator Estimator::load(const fs::path& run_dir) {
   const nlohmann::json run = detail::read_json_file(run_dir / "run.json");
-  if (run.value("format", "") != detail::kRunFormat)
+  // a run.json of another shape ("format": 5, an array) is not a run, not a JSON exception
+  // (found by fuzz/run_dir)
+  const auto field = [&run](const char* key) {
+    return run.is_object() && run.contains(key) ? run[key] : nlohmann::json();
+  };
+  if (field("format") != detail::kRunFormat)
     throw nn::FileFormatError((run_dir / "run.json").string() + ": not a ropes run");
-  if (!run.value("complete", false))
+  if (field("complete") != true)
     throw nn::FileFormatError((run_dir / "run.json").string() +
                               ": the run has not finished training; run ropes-train again "
                               "with the same arguments to resume it");
   auto s = std::make_unique<State>();
   try {
-    s->config = ExperimentConfig::from_json(run.at("config"), (run_dir / "run.json").string());
+    s->config = ExperimentConfig::from_json(field("config"), (run_dir / "run.json").string());
   } catch (const std::exception& e) {
     throw nn::FileFormatError(e.what());
   }

@@ -84,6 +84,8 @@ inline std::vector<std::string> get_strings(const nlohmann::json& j, const std::
 // the keys of `j` that are not in `known`: a misspelt option is an error, not a default
 inline void reject_unknown_keys(const nlohmann::json& j, const std::string& where,
                                 const std::vector<std::string>& known) {
+  if (!j.is_object())  // found by fuzz/experiment_config: a config file holding "0"
+    throw std::invalid_argument(where + ": expected a JSON object, got " + j.dump());
   for (auto it = j.begin(); it != j.end(); ++it) {
     bool ok = false;
     for (const std::string& k : known)

@@ -90,14 +90,18 @@ nlohmann::json open_run(const ExperimentConfig& config, const TrainingData& data
                                    {"threads", options.threads}};
   if (fs::exists(run_json)) {
     nlohmann::json run = read_json_file(run_json);
-    if (run.value("format", "") != kRunFormat)
-      throw std::invalid_argument(run_json.string() + ": not a ropes run (format \"" +
-                                  run.value("format", "") + "\", expected \"" + kRunFormat + "\")");
+    if (!run.is_object() || !run.contains("format") || run["format"] != kRunFormat)
+      throw std::invalid_argument(
+          run_json.string() + ": not a ropes run (format " +
+          (run.is_object() && run.contains("format") ? run["format"].dump() : "missing") +
+          ", expected \"" + kRunFormat + "\")");
     for (const auto& [key, value] : identity.items())
       if (run[key] != value)
         throw std::invalid_argument(
             run_dir.string() + " holds a run with another " + key + " (" +
-            (key == "config" ? run[key].value("name", "?") : run[key].dump()) +
+            (key == "config" && run[key].is_object() && run[key]["name"].is_string()
+                 ? run[key]["name"].get<std::string>()
+                 : run[key].dump()) +
             ", this one: " + (key == "config" ? config.name : value.dump()) +
             "); choose another --out or remove it");
     return run;
