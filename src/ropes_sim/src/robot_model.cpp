@@ -3,6 +3,7 @@
 #include <console_bridge/console.h>
 #include <urdf_parser/urdf_parser.h>
 
+#include <cstdio>
 #include <fstream>
 #include <mutex>
 #include <queue>
@@ -82,6 +83,47 @@ urdf::ModelInterfaceSharedPtr parse_urdf(const std::string& xml, std::string* me
   return model;
 }
 
+// The offset of the first byte of `text` that is not well-formed UTF-8 (a NUL counts as
+// bad), or npos. urdfdom's XML parser, TinyXML, steps over a UTF-8 sequence by the length
+// its lead byte announces: a lead byte among the last bytes of the text makes it read past
+// the end of the buffer (heap-buffer-overflow inside TinyXML, found by ropes_sim's
+// fuzz/urdf with a URDF ending in 0xda). So a URDF must be UTF-8 text, checked first.
+std::size_t first_bad_utf8(const std::string& text) {
+  const auto* p = reinterpret_cast<const unsigned char*>(text.data());
+  const std::size_t n = text.size();
+  for (std::size_t i = 0; i < n;) {
+    const unsigned char c = p[i];
+    std::size_t len = 0;
+    unsigned char low = 0x80, high = 0xbf;  // the second byte's range
+    if (c == 0)
+      return i;
+    if (c < 0x80) {
+      ++i;
+      continue;
+    }
+    if (c >= 0xc2 && c <= 0xdf) {
+      len = 2;
+    } else if (c >= 0xe0 && c <= 0xef) {
+      len = 3;
+      low = c == 0xe0 ? 0xa0 : 0x80;   // no overlong forms
+      high = c == 0xed ? 0x9f : 0xbf;  // no surrogates
+    } else if (c >= 0xf0 && c <= 0xf4) {
+      len = 4;
+      low = c == 0xf0 ? 0x90 : 0x80;
+      high = c == 0xf4 ? 0x8f : 0xbf;  // nothing above U+10FFFF
+    } else {
+      return i;
+    }
+    if (i + len > n || p[i + 1] < low || p[i + 1] > high)
+      return i;
+    for (std::size_t k = 2; k < len; ++k)
+      if (p[i + k] < 0x80 || p[i + k] > 0xbf)
+        return i;
+    i += len;
+  }
+  return std::string::npos;
+}
+
 }  // namespace
 
 RobotModel RobotModel::load(const std::filesystem::path& path) {
@@ -95,6 +137,13 @@ RobotModel RobotModel::load(const std::filesystem::path& path) {
 
 RobotModel RobotModel::parse(const std::string& xml, const std::string& source,
                              const std::filesystem::path& base_dir) {
+  const std::size_t bad = first_bad_utf8(xml);
+  if (bad != std::string::npos) {
+    char byte[8];
+    std::snprintf(byte, sizeof byte, "0x%02x", static_cast<unsigned char>(xml[bad]));
+    throw ModelError(source + ": byte " + std::to_string(bad) + " (" + byte +
+                     ") is not UTF-8 text; a URDF must be UTF-8 (or ASCII) without NUL bytes");
+  }
   std::string messages;
   const urdf::ModelInterfaceSharedPtr urdf = parse_urdf(xml, &messages);
   if (!urdf) {

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <filesystem>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "panda_dh.hpp"
 #include "ropes_nn/philox.hpp"
@@ -117,6 +119,36 @@ TEST(RobotModel, RefusesBadInputNamingTheFile) {
   Kinematics fk(panda);
   EXPECT_THROW(fk.set_positions({0.0, 1.0}), std::invalid_argument);
   EXPECT_THROW(fk.set_positions({0, 0, 0, NAN, 0, 0, 0}), std::invalid_argument);
+}
+
+// urdfdom's TinyXML reads past the end of a text that ends inside a UTF-8 sequence (found by
+// fuzz/urdf; the input is fuzz/regressions/urdf/ends_in_utf8_lead_byte.txt): such a URDF,
+// or one with a NUL or a byte UTF-8 never uses, is refused before urdfdom sees it
+TEST(RobotModel, RefusesTextThatIsNotUtf8BeforeTheXmlParserSeesIt) {
+  const std::string robot = "<robot name='x'><link name='a'/></robot>";
+  for (const auto& [text, offset] : std::vector<std::pair<std::string, std::size_t>>{
+           {robot + "\xda", robot.size()},
+           {"<robot name='\xf0\x9f'/>", 13},
+           {std::string("<robot\0 name='x'/>", 19), 6},
+           {"<robot name='\xff'/>", 13},
+           {"<robot name='\xc0\xaf'/>", 13},         // an overlong '/'
+           {"<robot name='\xed\xa0\x80'/>", 13}}) {  // a surrogate
+    try {
+      RobotModel::parse(text, "bad.urdf");
+      ADD_FAILURE() << "no exception for byte " << offset;
+    } catch (const ModelError& e) {
+      EXPECT_NE(std::string(e.what()).find("bad.urdf: byte " + std::to_string(offset) + " (0x"),
+                std::string::npos)
+          << e.what();
+      EXPECT_NE(std::string(e.what()).find("is not UTF-8 text"), std::string::npos) << e.what();
+    }
+  }
+  // UTF-8 beyond ASCII is fine: a link called "Gelenk-ä-✓-😀"
+  const RobotModel model = RobotModel::parse(
+      "<robot name='x'><link name='Gelenk-\xc3\xa4-\xe2\x9c\x93-\xf0\x9f\x98\x80'/></robot>",
+      "good.urdf");
+  ASSERT_EQ(model.links().size(), 1u);
+  EXPECT_EQ(model.links()[0].name, "Gelenk-\xc3\xa4-\xe2\x9c\x93-\xf0\x9f\x98\x80");
 }
 
 }  // namespace
