@@ -246,7 +246,9 @@ ExperimentConfig load_experiment_config(const std::string& name_or_path) {
   nlohmann::json j;
   try {
     j = nlohmann::json::parse(text.str());
-  } catch (const nlohmann::json::parse_error& e) {
+  } catch (const nlohmann::json::exception& e) {
+    // parse_error, and out_of_range for a number too large for any type (found by
+    // fuzz/experiment_config)
     throw std::invalid_argument(path.string() + ": not valid JSON (" + e.what() + ")");
   }
   return ExperimentConfig::from_json(j, path.string());

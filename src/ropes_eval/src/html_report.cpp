@@ -244,10 +244,19 @@ std::string line_plot(const std::vector<Series>& series, const std::string& titl
   return s.str();
 }
 
-// a matrix as a heat map: white 0 to orange at the largest |value|, each cell's value written
+// a matrix as a heat map: white 0 to orange at the largest |value|, each cell's value written.
+// Rows may differ in length (run.json is read as it is): the map is as wide as the widest,
+// a missing cell is drawn as a non-number (a ragged matrix read past a row's end before;
+// found by ropes_eval's fuzz/run_dir).
 std::string heat_map(const std::vector<std::vector<double>>& m,
                      const std::vector<std::string>& rows, const std::string& title) {
-  const std::size_t r = m.size(), c = r > 0 ? m[0].size() : 0;
+  const std::size_t r = m.size();
+  std::size_t c = 0;
+  for (const auto& row : m)
+    c = std::max(c, row.size());
+  const auto at = [&m](std::size_t i, std::size_t j) {
+    return j < m[i].size() ? m[i][j] : std::numeric_limits<double>::quiet_NaN();
+  };
   double top = 0;
   for (const auto& row : m)
     for (double v : row)
@@ -266,7 +275,7 @@ std::string heat_map(const std::vector<std::vector<double>>& m,
       << "\" text-anchor=\"end\" font-size=\"10\">" << escape(i < rows.size() ? rows[i] : "")
       << "</text>";
     for (std::size_t j = 0; j < c; ++j) {
-      const double v = std::isfinite(m[i][j]) ? std::fabs(m[i][j]) / (top > 0 ? top : 1) : 0;
+      const double v = std::isfinite(at(i, j)) ? std::fabs(at(i, j)) / (top > 0 ? top : 1) : 0;
       // white to orange rgb(230, 120, 20)
       const int red = static_cast<int>(255 - 25 * v), green = static_cast<int>(255 - 135 * v),
                 blue = static_cast<int>(255 - 235 * v);
@@ -276,7 +285,7 @@ std::string heat_map(const std::vector<std::vector<double>>& m,
         << ")\" stroke=\"#fff\"/><text x=\"" << left + static_cast<int>(j) * cell + cell / 2
         << "\" y=\"" << head + static_cast<int>(i) * cell + cell / 2 + 3
         << "\" text-anchor=\"middle\" font-size=\"8\" fill=\"" << (v > 0.6 ? "#fff" : "#222")
-        << "\">" << fmt(m[i][j], 2) << "</text>";
+        << "\">" << fmt(at(i, j), 2) << "</text>";
     }
   }
   s << "</svg>";
