@@ -12,10 +12,18 @@
 #include <fstream>
 #include <map>
 #include <sstream>
+#include <system_error>
 
 namespace ropes::sim {
 
 namespace {
+
+// a path that cannot be looked at (a name too long, a loop of links) is not a file: the
+// throwing overload ended a fuzz run with filesystem_error (ropes_sim's fuzz/mesh)
+bool regular_file(const std::filesystem::path& p) {
+  std::error_code ec;
+  return std::filesystem::is_regular_file(p, ec);
+}
 
 using Vec3 = Eigen::Vector3f;
 
@@ -93,7 +101,7 @@ std::shared_ptr<const Texture> load_texture(const std::filesystem::path& path, c
 // materials of one MTL file: newmtl, Kd, map_Kd (the last token is the file name)
 void load_mtl(const std::filesystem::path& path, const Where& from,
               std::map<std::string, Material>* materials, std::vector<std::string>* warnings) {
-  if (!std::filesystem::is_regular_file(path)) {
+  if (!regular_file(path)) {
     warnings->push_back(from.str() + ": material library '" + path.string() +
                         "' does not exist; its materials are drawn plain white");
     return;
@@ -122,7 +130,7 @@ void load_mtl(const std::filesystem::path& path, const Where& from,
         if (t.size() < 2)
           throw MeshError(where.str() + ": 'map_Kd' without a file name");
         const std::filesystem::path texture = path.parent_path() / std::string(t.back());
-        if (std::filesystem::is_regular_file(texture)) {
+        if (regular_file(texture)) {
           current->texture = load_texture(texture, where);
         } else {
           warnings->push_back(where.str() + ": texture '" + texture.string() +
@@ -325,7 +333,7 @@ Mesh load_stl(const std::filesystem::path& path) {
 }  // namespace
 
 Mesh load_mesh(const std::filesystem::path& path) {
-  if (!std::filesystem::is_regular_file(path))
+  if (!regular_file(path))
     throw MeshError(path.string() + ": mesh file does not exist");
   const std::string ext = lower(path.extension().string());
   if (ext == ".obj")

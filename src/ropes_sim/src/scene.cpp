@@ -1,6 +1,7 @@
 #include "ropes_sim/scene.hpp"
 
 #include <map>
+#include <system_error>
 
 namespace ropes::sim {
 
@@ -11,7 +12,8 @@ std::filesystem::path resolve_mesh_path(const std::string& filename,
   std::vector<fs::path> tried;
   const auto found = [&](const fs::path& p) {
     tried.push_back(p);
-    return fs::is_regular_file(p);
+    std::error_code ec;  // a name too long or a loop of links: not found, not a throw
+    return fs::is_regular_file(p, ec);
   };
   const std::string kPackage = "package://", kFile = "file://";
   if (filename.rfind(kFile, 0) == 0) {

@@ -76,6 +76,22 @@ TEST(Mesh, MissingMaterialLibraryIsAWarningNotAnError) {
   EXPECT_FLOAT_EQ(textured.materials[0].diffuse.x(), 0.5f);
 }
 
+// found by fuzz/mesh: a material library or texture whose name the file system refuses
+// (longer than NAME_MAX) threw filesystem_error out of load_mesh; it is a missing file
+TEST(Mesh, AMaterialFileNameTooLongIsAMissingFile) {
+  const fs::path dir = temp_dir("longname");
+  const std::string name(300, 'm');
+  write(dir / "m.obj", "mtllib " + name + ".mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  const Mesh mesh = load_mesh(dir / "m.obj");
+  ASSERT_EQ(mesh.warnings.size(), 1u);
+  EXPECT_NE(mesh.warnings[0].find(name), std::string::npos) << mesh.warnings[0];
+  write(dir / "t.mtl", "newmtl grey\nmap_Kd " + name + ".png\n");
+  write(dir / "t.obj", "mtllib t.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl grey\nf 1 2 3\n");
+  EXPECT_EQ(load_mesh(dir / "t.obj").warnings.size(), 1u);
+  EXPECT_NE(error_of(dir / (name + ".obj")).find("does not exist"), std::string::npos)
+      << error_of(dir / (name + ".obj"));
+}
+
 TEST(Mesh, BadObjFilesNameTheFileAndLine) {
   const fs::path dir = temp_dir("bad");
   write(dir / "range.obj", "v 0 0 0\nv 1 0 0\nf 1 2 3\n");
