@@ -13,7 +13,7 @@
 
 namespace {
 
-// whole triangles, parts inside them, materials that exist, finite numbers
+// whole triangles, parts inside them, materials that exist, textures of their stated size
 void check(const ropes::sim::Mesh& mesh) {
   const int vertices = mesh.vertex_count();
   if (mesh.vertices.size() % ropes::sim::Mesh::kFloatsPerVertex != 0 || vertices % 3 != 0)
