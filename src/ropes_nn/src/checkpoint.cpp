@@ -168,23 +168,26 @@ void save_module(const Module& module, const fs::path& path,
     file.tensors.emplace_back(
         prefix + name, f32_array(t.data(), t.shape().dims(), static_cast<std::size_t>(t.numel())));
   }
-  write_safetensors(path, file);
+  write_safetensors(path, file, /*sealed=*/true);
 }
 
 LoadResult load_module(Module& module, const fs::path& path, const LoadOptions& options) {
-  const Safetensors file = read_safetensors(path);
+  const Safetensors file = read_safetensors(path);  // checks the seal, when there is one
   const WeightPlan plan = plan_weights(module, file, path.string(), options);
   apply_weights(module, plan);
-  return {file.metadata, plan.missing, plan.unexpected};
+  std::map<std::string, std::string> metadata = file.metadata;
+  metadata.erase(kSafetensorsSealKey);
+  return {metadata, plan.missing, plan.unexpected};
 }
 
 void save_checkpoint(const fs::path& path, const Module& module, const Adam& adam,
                      const LrSchedule& schedule, const TrainingProgress& progress,
                      const std::map<std::string, std::string>& metadata) {
-  if (metadata.count(kCheckpointMetadataKey)) {
-    throw std::invalid_argument(std::string("save_checkpoint: metadata key '") +
-                                kCheckpointMetadataKey +
-                                "' is reserved for the training state; use another key");
+  for (const char* reserved : {kCheckpointMetadataKey, kSafetensorsSealKey}) {
+    if (metadata.count(reserved)) {
+      throw std::invalid_argument(std::string("save_checkpoint: metadata key '") + reserved +
+                                  "' is reserved for the training state; use another key");
+    }
   }
   if (progress.epoch < 0 || progress.position < 0) {
     throw std::invalid_argument("save_checkpoint: data cursor epoch " +
@@ -221,12 +224,12 @@ void save_checkpoint(const fs::path& path, const Module& module, const Adam& ada
   }
   const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
   remove_stale_temporaries(dir, path.filename().string());
-  write_safetensors(path, file);
+  write_safetensors(path, file, /*sealed=*/true);
 }
 
 LoadedCheckpoint load_checkpoint(const fs::path& path, Module& module, Adam& adam) {
   const std::string name = path.string();
-  const Safetensors file = read_safetensors(path);
+  const Safetensors file = read_safetensors(path);  // checks the seal, when there is one
 
   // the training state in the metadata
   const auto meta = file.metadata.find(kCheckpointMetadataKey);
@@ -247,11 +250,13 @@ LoadedCheckpoint load_checkpoint(const fs::path& path, Module& module, Adam& ada
          where + ".format is " + describe(format) + "; expected \"" + kCheckpointFormat + "\"");
   }
   const Json& version = field(state, "format_version", name, where);
-  if (version != kCheckpointFormatVersion) {
-    fail(name, where + ".format_version is " + describe(version) + "; expected " +
-                   std::to_string(kCheckpointFormatVersion) +
-                   " (the only version this reader "
-                   "knows)");
+  if (version != kCheckpointFormatVersion && version != 1) {
+    fail(name, where + ".format_version is " + describe(version) + "; expected 1 or " +
+                   std::to_string(kCheckpointFormatVersion) + " (the versions this reader knows)");
+  }
+  if (version != 1 && !is_sealed(file)) {
+    fail(name, std::string("has no seal (metadata '") + kSafetensorsSealKey +
+                   "'), which every checkpoint of format_version " + version.dump() + " has");
   }
   const std::int64_t step = count_field(state, "step", name, where);
   const double lr = number_field(state, "lr", name, where);
@@ -330,6 +335,7 @@ LoadedCheckpoint load_checkpoint(const fs::path& path, Module& module, Adam& ada
   }
   std::map<std::string, std::string> user = file.metadata;
   user.erase(kCheckpointMetadataKey);
+  user.erase(kSafetensorsSealKey);
   return {schedule, step, progress, user};
 }
 

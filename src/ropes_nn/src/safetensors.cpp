@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "json_text.hpp"
+#include "ropes_nn/sha256.hpp"
 
 namespace ropes::nn {
 
@@ -52,6 +53,51 @@ bool parse_dtype(const std::string& code, DType* out) {
   return false;
 }
 
+// where the seal's 64 digits `digits` start in the header bytes [8, header_end): the one
+// place the header holds "ropes.sha256":"<digits>"; npos when there is not exactly one
+std::size_t seal_digits_at(const std::uint8_t* bytes, std::size_t header_end,
+                           const std::string& digits) {
+  const std::string needle = std::string("\"") + kSafetensorsSealKey + "\":\"" + digits + "\"";
+  const char* begin = reinterpret_cast<const char*>(bytes) + 8;
+  const char* end = reinterpret_cast<const char*>(bytes) + header_end;
+  const char* first = std::search(begin, end, needle.begin(), needle.end());
+  if (first == end || std::search(first + 1, end, needle.begin(), needle.end()) != end)
+    return std::string::npos;
+  return static_cast<std::size_t>(first - reinterpret_cast<const char*>(bytes)) + needle.size() -
+         digits.size() - 1;
+}
+
+bool is_hex_digest(const std::string& text) {
+  return text.size() == 64 && std::all_of(text.begin(), text.end(), [](char c) {
+           return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'f');
+         });
+}
+
+// checks the seal `recorded` of the file image bytes[0, size) (header up to header_end)
+void check_seal(const std::uint8_t* bytes, std::size_t size, std::size_t header_end,
+                const std::string& recorded, const std::string& name) {
+  const std::string where = std::string("__metadata__['") + kSafetensorsSealKey + "']";
+  if (!is_hex_digest(recorded)) {
+    fail(name, where + " is " + detail::describe(Json(recorded)) +
+                   "; expected 64 lower-case hexadecimal digits");
+  }
+  const std::size_t at = seal_digits_at(bytes, header_end, recorded);
+  if (at == std::string::npos) {
+    fail(name, where + " is not written as \"" + kSafetensorsSealKey +
+                   "\":\"<digits>\" exactly once in the header; the seal cannot be checked");
+  }
+  Sha256 hash;
+  hash.update(bytes, at);
+  const std::string zeros(64, '0');
+  hash.update(reinterpret_cast<const std::uint8_t*>(zeros.data()), zeros.size());
+  hash.update(bytes + at + 64, size - at - 64);
+  const std::string actual = sha256_hex(hash.finish());
+  if (actual != recorded) {
+    fail(name, "sha256 is " + actual + "; its seal records " + recorded +
+                   " (the file changed after it was written)");
+  }
+}
+
 }  // namespace
 
 const NpyArray* Safetensors::find(const std::string& name) const {
@@ -62,10 +108,16 @@ const NpyArray* Safetensors::find(const std::string& name) const {
   return nullptr;
 }
 
-std::vector<std::uint8_t> serialize_safetensors(const Safetensors& file) {
+std::vector<std::uint8_t> serialize_safetensors(const Safetensors& file, bool sealed) {
   Json header = Json::object();
-  if (!file.metadata.empty())
+  if (sealed && file.metadata.count(kSafetensorsSealKey)) {
+    throw std::invalid_argument(std::string("serialize_safetensors: metadata key '") +
+                                kSafetensorsSealKey + "' is reserved for the seal");
+  }
+  if (!file.metadata.empty() || sealed)
     header["__metadata__"] = file.metadata;
+  if (sealed)
+    header["__metadata__"][kSafetensorsSealKey] = std::string(64, '0');
   std::set<std::string> names;
   std::uint64_t offset = 0;
   for (const auto& [name, array] : file.tensors) {
@@ -94,7 +146,19 @@ std::vector<std::uint8_t> serialize_safetensors(const Safetensors& file) {
   for (const auto& [name, array] : file.tensors) {
     out.insert(out.end(), array.data.begin(), array.data.end());
   }
+  if (sealed) {
+    // the digits are '0' while hashing; nlohmann writes the entry as "key":"value"
+    const std::size_t at = seal_digits_at(out.data(), 8 + text.size(), std::string(64, '0'));
+    if (at == std::string::npos)
+      throw std::logic_error("serialize_safetensors: the seal is not in the header as written");
+    const std::string hex = sha256_hex(out.data(), out.size());
+    std::copy(hex.begin(), hex.end(), out.begin() + static_cast<std::ptrdiff_t>(at));
+  }
   return out;
+}
+
+bool is_sealed(const Safetensors& file) {
+  return file.metadata.count(kSafetensorsSealKey) != 0;
 }
 
 Safetensors parse_safetensors(const std::uint8_t* bytes, std::size_t size,
@@ -195,6 +259,9 @@ Safetensors parse_safetensors(const std::uint8_t* bytes, std::size_t size,
     fail(name, "the tensors cover " + std::to_string(expected) + " bytes but the file holds " +
                    std::to_string(data_size) + " data bytes");
   }
+  const auto seal = file.metadata.find(kSafetensorsSealKey);
+  if (seal != file.metadata.end())
+    check_seal(bytes, size, 8 + header_length, seal->second, name);
   const std::uint8_t* data = bytes + 8 + header_length;
   for (Entry& e : entries) {
     e.array.data.assign(data + e.begin, data + e.end);
@@ -213,8 +280,8 @@ Safetensors read_safetensors(const std::filesystem::path& path) {
   return parse_safetensors(bytes.data(), bytes.size(), name);
 }
 
-void write_safetensors(const std::filesystem::path& path, const Safetensors& file) {
-  const std::vector<std::uint8_t> bytes = serialize_safetensors(file);
+void write_safetensors(const std::filesystem::path& path, const Safetensors& file, bool sealed) {
+  const std::vector<std::uint8_t> bytes = serialize_safetensors(file, sealed);
   write_file_atomically(path, bytes.data(), bytes.size());
 }
 

@@ -307,12 +307,14 @@ TEST(Checkpoint, RefusesFilesThatDoNotMatchAndChangesNothing) {
                   "file loads with load_module");
 
   // a damaged training state, field by field
+  // (each damaged copy is sealed anew, so that the field, not the seal, is what is refused)
   Safetensors file = read_safetensors(good);
+  file.metadata.erase(kSafetensorsSealKey);
   auto with_state = [&](const std::string& json) {
     Safetensors f = file;
     f.metadata[kCheckpointMetadataKey] = json;
     const fs::path p = scratch("state.safetensors");
-    write_safetensors(p, f);
+    write_safetensors(p, f, /*sealed=*/true);
     return error_loading(p, *target, target_adam);
   };
   const std::string state = file.metadata.at(kCheckpointMetadataKey);
@@ -323,8 +325,31 @@ TEST(Checkpoint, RefusesFilesThatDoNotMatchAndChangesNothing) {
     return s.replace(at, from.size(), to);
   };
   EXPECT_CONTAINS(with_state("{"), "metadata[\"ropes.checkpoint\"] is not JSON");
-  EXPECT_CONTAINS(with_state(replaced("\"format_version\":1", "\"format_version\":2")),
-                  "format_version is 2; expected 1");
+  // a version 2 checkpoint without its seal; a version 1 one (before seals) still loads
+  const fs::path unsealed = scratch("unsealed.safetensors");
+  write_safetensors(unsealed, file);
+  EXPECT_CONTAINS(error_loading(unsealed, *target, target_adam),
+                  unsealed.string() + ": has no seal (metadata 'ropes.sha256')");
+  {
+    Safetensors v1 = file;
+    std::string& json = v1.metadata[kCheckpointMetadataKey];
+    const auto at = json.find("\"format_version\":2");
+    ASSERT_NE(at, std::string::npos) << json;
+    json.replace(at, 18, "\"format_version\":1");
+    write_safetensors(unsealed, v1);
+    auto other = small_net();
+    Adam other_adam(other->named_parameters(), AdamOptions{1e-3});
+    EXPECT_EQ(error_loading(unsealed, *other, other_adam), "no error");
+  }
+  // one byte of the saved weights changed: refused by the seal
+  {
+    std::vector<std::uint8_t> damaged = bytes_of(good);
+    damaged[damaged.size() - 40] ^= 0x10;
+    write_file_atomically(unsealed, damaged.data(), damaged.size());
+    EXPECT_CONTAINS(error_loading(unsealed, *target, target_adam), "; its seal records ");
+  }
+  EXPECT_CONTAINS(with_state(replaced("\"format_version\":2", "\"format_version\":3")),
+                  "format_version is 3; expected 1 or 2");
   EXPECT_CONTAINS(with_state(replaced("\"epoch\":0", "\"epoch\":-3")),
                   "metadata[\"ropes.checkpoint\"].epoch is -3; expected an integer >= 0");
   EXPECT_CONTAINS(with_state(replaced("\"kind\":\"constant\",\"lr\":0.001",
@@ -341,7 +366,7 @@ TEST(Checkpoint, RefusesFilesThatDoNotMatchAndChangesNothing) {
   extra.data.resize(4);
   foreign.tensors.emplace_back("ema.conv.weight", extra);
   const fs::path foreign_path = scratch("foreign.safetensors");
-  write_safetensors(foreign_path, foreign);
+  write_safetensors(foreign_path, foreign, /*sealed=*/true);
   EXPECT_CONTAINS(error_loading(foreign_path, *target, target_adam),
                   "holds tensor 'ema.conv.weight', which is neither model.* nor optimizer.*");
   // a parameter's update count beyond the checkpoint's step
@@ -353,7 +378,7 @@ TEST(Checkpoint, RefusesFilesThatDoNotMatchAndChangesNothing) {
     }
   }
   const fs::path counted_path = scratch("counted.safetensors");
-  write_safetensors(counted_path, counted);
+  write_safetensors(counted_path, counted, /*sealed=*/true);
   EXPECT_CONTAINS(
       error_loading(counted_path, *target, target_adam),
       "tensor 'optimizer.step.conv.weight' is 3; expected 0..2 (the checkpoint's step)");

@@ -73,6 +73,8 @@ TEST(SafetensorsGolden, APythonReaderOfThePublishedFormatReadsWhatWeWrite) {
   // what the reader should print, computed here
   std::ostringstream expected;
   expected << "meta note=written by ropes_nn\n";
+  expected << "meta ropes.sha256=" << read_safetensors(path).metadata.at(kSafetensorsSealKey)
+           << "\n";
   auto params = net->named_parameters();
   std::sort(params.begin(), params.end(),
             [](const auto& x, const auto& y) { return x.first < y.first; });
@@ -218,6 +220,72 @@ TEST(Safetensors, TruncatedAndCorruptedFilesGiveFileFormatErrorsOnly) {
     }
   }
   EXPECT_GT(refused, 500);
+  fs::remove_all(path.parent_path());
+}
+
+// A sealed file: the seal is the SHA-256 of the file with its 64 digits read as '0'
+// (witness: coreutils' sha256sum of that image), and a change to any one byte of it, header
+// or data, is refused; the seal's entry cannot be set by hand.
+TEST(Safetensors, ASealedFileIsRefusedWhenAnyByteChanged) {
+  const auto net = small_net(9);
+  const fs::path path = scratch("sealed.safetensors");
+  save_module(*net, path, {{"k", "v"}});
+  std::ifstream in(path, std::ios::binary);
+  const std::vector<std::uint8_t> good((std::istreambuf_iterator<char>(in)),
+                                       std::istreambuf_iterator<char>());
+  const Safetensors parsed = parse_safetensors(good.data(), good.size(), "good");
+  ASSERT_TRUE(is_sealed(parsed));
+  const std::string seal = parsed.metadata.at(kSafetensorsSealKey);
+  ASSERT_EQ(seal.size(), 64u);
+
+  std::string image(good.begin(), good.end());
+  const auto at = image.find(seal);
+  ASSERT_NE(at, std::string::npos);
+  image.replace(at, 64, std::string(64, '0'));
+  const fs::path zeroed = scratch("zeroed.bin");
+  std::ofstream(zeroed, std::ios::binary) << image;
+  const fs::path sum = scratch("sum.txt");
+  const std::string command = "sha256sum '" + zeroed.string() + "' > '" + sum.string() + "'";
+  ASSERT_EQ(std::system(command.c_str()), 0) << command;
+  std::ifstream sum_in(sum);
+  std::string printed;
+  sum_in >> printed;
+  EXPECT_EQ(printed, seal);
+
+  // every byte but those of the seal's own key: a change there leaves an unsealed file
+  // whose tensors are intact (a checkpoint is refused then: it must be sealed)
+  const std::size_t key_at = image.find(std::string("\"") + kSafetensorsSealKey + "\"") + 1;
+  std::size_t refused = 0, by_seal = 0;
+  for (std::size_t i = 0; i < good.size(); ++i) {
+    std::vector<std::uint8_t> bad = good;
+    bad[i] ^= 0x01;
+    try {
+      const Safetensors read = parse_safetensors(bad.data(), bad.size(), "bad");
+      EXPECT_TRUE(i >= key_at && i < key_at + 12) << "byte " << i << " changed, not refused";
+      EXPECT_FALSE(is_sealed(read));
+      for (std::size_t t = 0; t < read.tensors.size(); ++t)
+        EXPECT_EQ(read.tensors[t].second.data, parsed.tensors[t].second.data);
+    } catch (const FileFormatError& e) {
+      ++refused;
+      by_seal += std::string(e.what()).find("(the file changed after it was written)") !=
+                 std::string::npos;
+    }
+  }
+  EXPECT_EQ(refused, good.size() - 12);
+  EXPECT_GT(by_seal, good.size() / 2);  // the data bytes, and the header's numbers
+
+  // the seal is the writer's: set by hand it is refused, an unsealed file still reads
+  Safetensors f = parsed;
+  EXPECT_THROW(serialize_safetensors(f, /*sealed=*/true), std::invalid_argument);
+  f.metadata.erase(kSafetensorsSealKey);
+  const std::vector<std::uint8_t> plain = serialize_safetensors(f);
+  EXPECT_FALSE(is_sealed(parse_safetensors(plain.data(), plain.size(), "plain")));
+  // a seal that is not 64 digits is named
+  f.metadata[kSafetensorsSealKey] = "abc";
+  const std::vector<std::uint8_t> short_seal = serialize_safetensors(f);
+  EXPECT_NE(parse_error(short_seal).find("__metadata__['ropes.sha256'] is \"abc\"; expected 64"),
+            std::string::npos)
+      << parse_error(short_seal);
   fs::remove_all(path.parent_path());
 }
 

@@ -17,7 +17,10 @@
 ///             entries (architecture, config...) under any other key.
 /// The weights load alone for inference: load_module(module, file, {"model."}).
 /// Files are written to a temporary name, fsync'ed and renamed (write_file_atomically): a
-/// crash leaves the previous checkpoint or the new one, never half of one.
+/// crash leaves the previous checkpoint or the new one, never half of one. Both kinds of
+/// file are sealed (safetensors.hpp: the metadata "ropes.sha256" holds the file's SHA-256),
+/// and reading checks the seal, so a file damaged after writing is refused, never loaded.
+/// Checkpoints of format_version 1 (before seals) and unsealed weights files still load.
 
 #include <cstdint>
 #include <filesystem>
@@ -32,7 +35,8 @@
 namespace ropes::nn {
 
 /// Saves every parameter of `module` as F32 under "<prefix><dotted name>", with `metadata`.
-/// Throws FileFormatError naming the file when it cannot be written.
+/// Sealed. Throws FileFormatError naming the file when it cannot be written,
+/// std::invalid_argument when `metadata` uses the seal's key "ropes.sha256".
 void save_module(const Module& module, const std::filesystem::path& path,
                  const std::map<std::string, std::string>& metadata = {},
                  const std::string& prefix = "");
@@ -49,7 +53,7 @@ struct LoadOptions {
 };
 
 struct LoadResult {
-  std::map<std::string, std::string> metadata;  ///< the file's metadata
+  std::map<std::string, std::string> metadata;  ///< the file's metadata, less the seal
   std::vector<std::string> missing;             ///< parameters the file lacked (not strict only)
   std::vector<std::string> unexpected;  ///< considered tensors the module lacks (not strict)
 };
@@ -71,14 +75,16 @@ struct TrainingProgress {
 
 /// The checkpoint's format name and version, as its metadata records them.
 inline constexpr const char* kCheckpointFormat = "ropes-checkpoint";
-inline constexpr int kCheckpointFormatVersion = 1;
+/// 2: sealed (version 1 files, unsealed, still load).
+inline constexpr int kCheckpointFormatVersion = 2;
 inline constexpr const char* kCheckpointMetadataKey = "ropes.checkpoint";
 
 /// Writes a training state (see the file comment). `adam`'s parameters need not be all of
 /// `module`'s (a frozen part), but they are saved by the optimiser's names. Throws
-/// std::invalid_argument when `metadata` uses the key "ropes.checkpoint", FileFormatError
-/// naming the file when it cannot be written. Removes temporaries of this file left by
-/// killed processes. Cost: builds the file in memory (weights + 2 moments) before writing.
+/// std::invalid_argument when `metadata` uses the key "ropes.checkpoint" or "ropes.sha256",
+/// FileFormatError naming the file when it cannot be written. Removes temporaries of this
+/// file left by killed processes. Cost: builds the file in memory (weights + 2 moments) before
+/// writing.
 void save_checkpoint(const std::filesystem::path& path, const Module& module, const Adam& adam,
                      const LrSchedule& schedule, const TrainingProgress& progress,
                      const std::map<std::string, std::string>& metadata = {});
@@ -94,9 +100,9 @@ struct LoadedCheckpoint {
 /// parameter update counts, step count and hyperparameters, the rate included). Throws
 /// FileFormatError naming the file and, where one is to blame, the tensor or field: not a
 /// checkpoint (no "ropes.checkpoint" metadata), another format version, a truncated or
-/// corrupt file, a missing, extra or mis-shaped weight or optimiser tensor (a checkpoint of
-/// another architecture), a malformed schedule or cursor. Nothing is changed unless every
-/// check passes.
+/// corrupt file, a seal that does not match (or none in a version 2 file), a missing, extra or
+/// mis-shaped weight or optimiser tensor (a checkpoint of another architecture), a malformed
+/// schedule or cursor. Nothing is changed unless every check passes.
 LoadedCheckpoint load_checkpoint(const std::filesystem::path& path, Module& module, Adam& adam);
 
 }  // namespace ropes::nn
