@@ -1,6 +1,7 @@
 #include "ropes_nn/dataset.hpp"
 
 #include <fcntl.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -255,6 +256,16 @@ NpyHeader check_column_file(const Fd& fd, const std::string& name, const ColumnS
 
 // --- JSON ------------------------------------------------------------------------------------
 
+// the descriptors this process holds open now (those listed in /proc/self/fd, less the one
+// that lists them); 0 when that cannot be read
+std::uint64_t count_open_descriptors() {
+  std::error_code ec;
+  std::uint64_t n = 0;
+  for (fs::directory_iterator it("/proc/self/fd", ec), end; !ec && it != end; it.increment(ec))
+    ++n;
+  return n > 0 ? n - 1 : 0;
+}
+
 // the text of a small file; a FileFormatError naming it when missing, too large or unreadable
 std::string read_text_file(const fs::path& path, std::uint64_t max_bytes,
                            const std::string& context) {
@@ -461,6 +472,12 @@ void write_dataset_shard(const fs::path& dir, int shard, const std::vector<Colum
   // no marker while the files change, so a crash here leaves the shard incomplete
   const fs::path shards = dir / "shards";
   std::error_code ec;
+  // a link there would take the shards out of the dataset's directory
+  if (fs::is_symlink(shards, ec)) {
+    fail(shards.string(),
+         "is a symbolic link; a dataset's shards are written only inside its "
+         "directory (replace the link with a directory)");
+  }
   fs::create_directories(shards, ec);
   if (ec)
     fail(shards.string(), "cannot create the directory: " + ec.message());
@@ -494,6 +511,30 @@ bool dataset_shard_complete(const fs::path& dir, int shard, const std::vector<Co
     return true;
   } catch (const FileFormatError&) {
     return false;
+  }
+}
+
+std::string dataset_shard_problem(const fs::path& dir, int shard,
+                                  const std::vector<ColumnSpec>& columns,
+                                  const std::string& dataset_id, bool check_sha256) {
+  check_columns("dataset_shard_problem", columns);
+  check_shard_number("dataset_shard_problem", shard);
+  try {
+    const ShardRecord record = read_complete_shard(dir, shard, columns, dataset_id);
+    if (check_sha256) {
+      for (const FileRecord& f : record.files) {
+        const fs::path file = dir / f.path;
+        const std::string actual = sha256_file(file);
+        if (actual != f.sha256) {
+          fail(file.string(), "sha256 is " + actual + "; the marker of shard " +
+                                  std::to_string(shard) + " records " + f.sha256 +
+                                  " (the file changed after it was written)");
+        }
+      }
+    }
+    return "";
+  } catch (const FileFormatError& e) {
+    return e.what();
   }
 }
 
@@ -677,7 +718,22 @@ DatasetReader DatasetReader::open(const fs::path& dir) {
   state->metadata = metadata.dump();
   state->metadata_value = metadata;
 
-  // every file open, its header and size as the manifest says
+  // every file open, its header and size as the manifest says; first, that the descriptors
+  // fit under the process's limit with room to spare (a reader holds one per file)
+  const std::uint64_t files = records.size() * state->columns.size();
+  rlimit limit{};
+  if (::getrlimit(RLIMIT_NOFILE, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY) {
+    const std::uint64_t open_now = count_open_descriptors();
+    const std::uint64_t spare = 64;
+    if (open_now + files + spare > limit.rlim_cur) {
+      fail(name, "lists " + std::to_string(records.size()) + " shards of " +
+                     std::to_string(state->columns.size()) + " columns: " + std::to_string(files) +
+                     " files to hold open, with " + std::to_string(open_now) +
+                     " open already and " + std::to_string(spare) +
+                     " to spare, over this process's limit of " + std::to_string(limit.rlim_cur) +
+                     " file descriptors (raise it with ulimit -n, or write fewer, larger shards)");
+    }
+  }
   for (std::size_t s = 0; s < records.size(); ++s) {
     for (std::size_t c = 0; c < state->columns.size(); ++c) {
       const FileRecord& record = records[s].files[c];

@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <signal.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <charconv>
@@ -379,15 +380,32 @@ void write_file_atomically(const std::filesystem::path& path, const std::uint8_t
   const std::string name = path.string();
   const std::string temp = name + ".tmp." + std::to_string(::getpid());
   {
-    FilePtr file(std::fopen(temp.c_str(), "wb"));
-    if (!file)
+    // a new file, never one that is there: not a temporary of an earlier process that had
+    // this pid, and not a link planted at the name (O_NOFOLLOW), which would be written
+    // through to its target; either is removed (the link itself) and the file made anew
+    constexpr int kFlags = O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC;
+    int fd = ::open(temp.c_str(), kFlags, 0666);
+    if (fd < 0 && errno == EEXIST && ::unlink(temp.c_str()) == 0)
+      fd = ::open(temp.c_str(), kFlags, 0666);
+    if (fd < 0)
       fail(name, std::string("cannot write ") + temp + ": " + std::strerror(errno));
-    const bool ok = std::fwrite(bytes, 1, size, file.get()) == size &&
-                    std::fflush(file.get()) == 0 && ::fsync(::fileno(file.get())) == 0;
-    if (!ok) {
-      const std::string reason = std::strerror(errno);
-      file.reset();
-      std::remove(temp.c_str());
+    std::size_t done = 0;
+    bool ok = true;
+    while (ok && done < size) {
+      const ssize_t n = ::write(fd, bytes + done, size - done);
+      if (n > 0)
+        done += static_cast<std::size_t>(n);
+      else if (n < 0 && errno == EINTR)
+        continue;
+      else
+        ok = false;  // errno says why (ENOSPC, EFBIG, EIO, ...)
+    }
+    ok = ok && ::fsync(fd) == 0;
+    const int write_errno = errno;
+    const bool closed = ::close(fd) == 0;
+    if (!ok || !closed) {
+      const std::string reason = std::strerror(ok ? errno : write_errno);
+      ::unlink(temp.c_str());
       fail(name, "writing failed: " + reason);
     }
   }
@@ -404,6 +422,41 @@ void write_file_atomically(const std::filesystem::path& path, const std::uint8_t
     ::fsync(dir);
     ::close(dir);
   }
+}
+
+std::string read_text_file(const std::filesystem::path& path, std::uint64_t max_bytes) {
+  const std::string name = path.string();
+  const int fd = ::open(name.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0)
+    fail(name, std::string("cannot open: ") + std::strerror(errno));
+  struct Closer {
+    int fd;
+    ~Closer() { ::close(fd); }
+  } closer{fd};
+  struct stat st {};
+  if (::fstat(fd, &st) != 0)
+    fail(name, std::string("cannot read: ") + std::strerror(errno));
+  if (!S_ISREG(st.st_mode))
+    fail(name, "is not a regular file");
+  const auto size = static_cast<std::uint64_t>(st.st_size);
+  if (size > max_bytes) {
+    fail(name, "holds " + std::to_string(size) + " bytes; expected at most " +
+                   std::to_string(max_bytes) + " for a file of this kind");
+  }
+  std::string text(static_cast<std::size_t>(size), '\0');
+  std::size_t done = 0;
+  while (done < text.size()) {
+    const ssize_t n = ::pread(fd, text.data() + done, text.size() - done, static_cast<off_t>(done));
+    if (n < 0 && errno == EINTR)
+      continue;
+    if (n < 0)
+      fail(name, std::string("cannot read: ") + std::strerror(errno));
+    if (n == 0)
+      break;  // it shrank while being read: what is there
+    done += static_cast<std::size_t>(n);
+  }
+  text.resize(done);
+  return text;
 }
 
 void remove_stale_temporaries(const std::filesystem::path& dir, const std::string& file_name) {

@@ -1,6 +1,7 @@
 #include "ropes_nn/dataset.hpp"
 
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -312,6 +313,53 @@ TEST_F(DatasetTest, VerifyCatchesOneFlippedByte) {
   const std::string error = file_error_of([&] { reader.verify(); });
   EXPECT_CONTAINS(error, file.string() + ": sha256 is " + sha256_file(file) +
                              "; the manifest records " + recorded);
+}
+
+// dataset_shard_problem with check_sha256: a flipped byte in a committed shard is named,
+// which dataset_shard_complete (sizes and headers only) does not see
+TEST_F(DatasetTest, ShardProblemWithSha256FindsAFlippedByte) {
+  write_dataset(dir_);
+  EXPECT_EQ(dataset_shard_problem(dir_, 1, kColumns, "", true), "");
+  const fs::path file = shard_file("angles", 1);
+  {
+    std::fstream f(file, std::ios::binary | std::ios::in | std::ios::out);
+    f.seekp(-3, std::ios::end);
+    f.put(static_cast<char>(0x11));
+  }
+  EXPECT_TRUE(dataset_shard_complete(dir_, 1, kColumns));
+  EXPECT_EQ(dataset_shard_problem(dir_, 1, kColumns), "");
+  EXPECT_CONTAINS(dataset_shard_problem(dir_, 1, kColumns, "", true),
+                  file.string() + ": sha256 is " + sha256_file(file) + "; the marker of shard 1");
+  EXPECT_CONTAINS(dataset_shard_problem(dir_, 7, kColumns, "", true), "shard 7 is not complete");
+}
+
+// DIR/shards as a link to elsewhere: refused, nothing written there
+TEST_F(DatasetTest, WritingAShardRefusesAShardsDirectoryThatIsALink) {
+  const fs::path elsewhere = dir_.string() + "_elsewhere";
+  fs::create_directories(elsewhere);
+  fs::create_directories(dir_);
+  fs::create_directory_symlink(elsewhere, dir_ / "shards");
+  EXPECT_CONTAINS(file_error_of([&] { write_dataset_shard(dir_, 0, kColumns, make_rows(0, 2)); }),
+                  (dir_ / "shards").string() + ": is a symbolic link");
+  EXPECT_TRUE(fs::is_empty(elsewhere));
+  fs::remove_all(elsewhere);
+}
+
+// a manifest whose files would not fit under the descriptor limit is refused before any
+// file is opened, with the numbers and what to do
+TEST_F(DatasetTest, OpenRefusesMoreFilesThanTheDescriptorLimitAllows) {
+  write_dataset(dir_);
+  rlimit saved{};
+  ASSERT_EQ(::getrlimit(RLIMIT_NOFILE, &saved), 0);
+  rlimit low = saved;
+  low.rlim_cur = 40;  // below what the reader asks for: its files and 64 to spare
+  ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &low), 0);
+  const std::string error = file_error_of([&] { DatasetReader::open(dir_); });
+  ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &saved), 0);
+  EXPECT_CONTAINS(error, (dir_ / "manifest.json").string() + ": lists 3 shards of " +
+                             std::to_string(kColumns.size()) + " columns: ");
+  EXPECT_CONTAINS(error, "over this process's limit of 40 file descriptors (raise it with");
+  DatasetReader::open(dir_);  // under the usual limit it opens
 }
 
 TEST_F(DatasetTest, IncompleteShardsAreReportedAndRefusedByTheManifest) {

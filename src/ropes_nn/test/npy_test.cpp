@@ -78,6 +78,62 @@ TEST(Npy, RoundTripsThroughAFileAndLeavesNoTemporary) {
   fs::remove_all(dir);
 }
 
+// A symbolic link where the temporary or the file goes is never written through: its target
+// keeps its bytes, the file is written, and no link or temporary is left
+TEST(Npy, WritingNeverFollowsALinkAtTheTemporaryOrTheFile) {
+  const fs::path dir = fs::temp_directory_path() / ("ropes_npy_link_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir / "out");
+  const fs::path target = dir / "outside.txt";
+  std::ofstream(target) << "not yours";
+  const std::uint8_t bytes[] = {1, 2, 3};
+  const fs::path file = dir / "out" / "a.npy";
+  fs::create_symlink(target, file.string() + ".tmp." + std::to_string(::getpid()));
+  write_file_atomically(file, bytes, sizeof bytes);
+  EXPECT_EQ(file_bytes(file), std::vector<std::uint8_t>({1, 2, 3}));
+  const fs::path link = dir / "out" / "b.npy";
+  fs::create_symlink(target, link);
+  write_file_atomically(link, bytes, sizeof bytes);
+  EXPECT_FALSE(fs::is_symlink(link));
+  EXPECT_EQ(file_bytes(link), std::vector<std::uint8_t>({1, 2, 3}));
+  std::ifstream in(target);
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), "not yours");
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir / "out"), fs::directory_iterator()), 2);
+  fs::remove_all(dir);
+}
+
+std::string text_file_error(const fs::path& path, std::uint64_t limit) {
+  try {
+    read_text_file(path, limit);
+  } catch (const FileFormatError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+// read_text_file: a 2 GiB file (sparse: no disk used) is refused by its size before it is
+// read; a directory and a missing file are named
+TEST(TextFile, RefusesAFileOverItsLimitBeforeReadingIt) {
+  const fs::path dir = fs::temp_directory_path() / ("ropes_text_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const fs::path big = dir / "big.json";
+  std::ofstream(big) << "\"";
+  fs::resize_file(big, std::uint64_t{2} << 30);
+  EXPECT_EQ(text_file_error(big, kMaxJsonFileBytes),
+            big.string() +
+                ": holds 2147483648 bytes; expected at most 16777216 for a file of "
+                "this kind");
+  EXPECT_NE(text_file_error(dir, 100).find(dir.string() + ": is not a regular file"),
+            std::string::npos);
+  EXPECT_NE(text_file_error(dir / "none.json", 100).find(": cannot open: No such file"),
+            std::string::npos);
+  const fs::path small = dir / "small.json";
+  std::ofstream(small) << "{\"a\": 1}";
+  EXPECT_EQ(read_text_file(small, 8), "{\"a\": 1}");
+  EXPECT_NE(text_file_error(small, 7).find("holds 8 bytes; expected at most 7"), std::string::npos);
+  fs::remove_all(dir);
+}
+
 // numpy itself opens what write_npy wrote, with the dtype and values of the fixture it made
 TEST(NpyGolden, NumpyLoadsWhatWeWrite) {
   if (std::system("/usr/bin/python3 -c 'import numpy' 2>/dev/null") != 0) {

@@ -62,7 +62,8 @@ inline constexpr int kDatasetFormatVersion = 1;
 /// a bad column spec (name, negative dimension, duplicate), a count of arrays other than
 /// the columns', another dtype or shape, rows that differ or are 0, or data bytes that do
 /// not match the shape; nothing is written then. Throws FileFormatError naming the file
-/// when a file cannot be written. Cost: one SHA-256 pass over the data, plus the writes.
+/// when a file cannot be written, or DIR/shards when it is a symbolic link (the shards
+/// are written only inside DIR). Cost: one SHA-256 pass over the data, plus the writes.
 ///
 /// `dataset_id` (optional) names the dataset the shard belongs to (a writer passes, say, a
 /// hash of its configuration); it is recorded in the marker as "dataset", and
@@ -81,6 +82,15 @@ void write_dataset_shard(const std::filesystem::path& dir, int shard,
 bool dataset_shard_complete(const std::filesystem::path& dir, int shard,
                             const std::vector<ColumnSpec>& columns,
                             const std::string& dataset_id = "");
+
+/// Why shard `shard` of `dir` is not complete, as the message of the FileFormatError that
+/// names the file to blame; empty when it is complete (dataset_shard_complete). With
+/// `check_sha256`, a complete shard whose files do not hash to its marker's SHA-256s (a
+/// file damaged after writing) is not complete either. Throws as dataset_shard_complete.
+/// Cost: with check_sha256, one SHA-256 pass over the shard's files.
+std::string dataset_shard_problem(const std::filesystem::path& dir, int shard,
+                                  const std::vector<ColumnSpec>& columns,
+                                  const std::string& dataset_id = "", bool check_sha256 = false);
 
 /// Writes DIR/manifest.json for shards 0 .. shard_count - 1, from their markers.
 /// `metadata_json` must be the text of a JSON object (it is stored parsed, so formatting
