@@ -1,10 +1,13 @@
 #include "ropes_crl/experiment_config.hpp"
 
+#include <algorithm>
+#include <cctype>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
 
 #include "json_fields.hpp"
+#include "ropes_nn/npy.hpp"
 
 namespace ropes::crl {
 
@@ -57,6 +60,19 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
     ExperimentConfig c;
     c.raw = j;
     c.name = get_string(j, "config", "name");
+    // ropes-run's default output is runs/<name>: a name is never a path
+    const bool plain = !c.name.empty() && c.name.size() <= 128 && c.name[0] != '.' &&
+                       std::all_of(c.name.begin(), c.name.end(), [](char ch) {
+                         return std::isalnum(static_cast<unsigned char>(ch)) || ch == '_' ||
+                                ch == '-' || ch == '.';
+                       });
+    if (!plain) {
+      throw std::invalid_argument(
+          "config.name: expected a plain name (letters, digits, '_', "
+          "'-', '.', not starting with '.'; at most 128 characters), "
+          "got \"" +
+          c.name.substr(0, 64) + "\"");
+    }
     c.preset = get_string(j, "config", "preset");
     if (c.preset != "tiny" && c.preset != "small" && c.preset != "paper")
       throw std::invalid_argument(
@@ -238,14 +254,15 @@ ExperimentConfig load_experiment_config(const std::string& name_or_path) {
     }
     path = installed;
   }
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  if (!in && !in.eof())
-    throw std::invalid_argument(path.string() + ": cannot be read");
+  std::string text;
+  try {
+    text = nn::read_text_file(path, nn::kMaxJsonFileBytes);  // a huge file: refused by size
+  } catch (const nn::FileFormatError& e) {
+    throw std::invalid_argument(e.what());
+  }
   nlohmann::json j;
   try {
-    j = nlohmann::json::parse(text.str());
+    j = nlohmann::json::parse(text);
   } catch (const nlohmann::json::exception& e) {
     // parse_error, and out_of_range for a number too large for any type (found by
     // fuzz/experiment_config)

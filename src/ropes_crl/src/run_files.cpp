@@ -5,19 +5,17 @@
 
 #include <unistd.h>
 
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 
 namespace ropes::crl::detail {
 
 nlohmann::json read_json_file(const fs::path& path) {
-  std::ifstream in(path);
-  if (!in)
-    throw nn::FileFormatError(path.string() + ": cannot be opened");
-  std::stringstream text;
-  text << in.rdbuf();
-  const nlohmann::json j = nlohmann::json::parse(text.str(), nullptr, false);
+  const std::string text = nn::read_text_file(path, nn::kMaxJsonFileBytes);
+  const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
   if (j.is_discarded())
     throw nn::FileFormatError(path.string() + ": not valid JSON");
   return j;
@@ -30,7 +28,10 @@ void write_json_file(const fs::path& path, const nlohmann::json& j) {
 
 std::vector<std::string> MetricsLog::lines() const {
   std::vector<std::string> out;
-  std::ifstream in(path_);
+  std::error_code ec;
+  if (!fs::exists(path_, ec))
+    return out;
+  std::istringstream in(nn::read_text_file(path_, nn::kMaxLogFileBytes));
   std::string line;
   while (std::getline(in, line))
     if (!line.empty())
@@ -51,9 +52,14 @@ void MetricsLog::append(const nlohmann::json& record) const {
   if (f == nullptr)
     throw nn::FileFormatError(path_.string() + ": cannot be opened for appending");
   const std::string line = record.dump() + "\n";
-  const bool ok = std::fwrite(line.data(), 1, line.size(), f) == line.size();
-  if (std::fclose(f) != 0 || !ok)
-    throw nn::FileFormatError(path_.string() + ": a record could not be written (disk full?)");
+  const bool written = std::fwrite(line.data(), 1, line.size(), f) == line.size();
+  const int write_errno = errno;
+  const bool closed = std::fclose(f) == 0;
+  if (!written || !closed) {
+    // a torn last line is dropped when the stage resumes (truncate)
+    throw nn::FileFormatError(path_.string() + ": a record could not be written: " +
+                              std::strerror(written ? errno : write_errno));
+  }
   if (observer_)
     observer_(record);
 }

@@ -41,6 +41,16 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+// load_checkpoint; a refusal (a damaged or foreign file) says what to do about it
+nn::LoadedCheckpoint resume_from(const fs::path& checkpoint, nn::Module& net, nn::Adam& adam) {
+  try {
+    return nn::load_checkpoint(checkpoint, net, adam);
+  } catch (const nn::FileFormatError& e) {
+    throw nn::FileFormatError(std::string(e.what()) + "; remove " + checkpoint.string() +
+                              " to train this model again from its first step");
+  }
+}
+
 double seconds_since(Clock::time_point t) {
   return std::chrono::duration<double>(Clock::now() - t).count();
 }
@@ -148,7 +158,7 @@ void train_ae1(const ExperimentConfig& config, const TrainingData& data, const f
 
   const fs::path weights = ae1_file(run_dir), checkpoint = checkpoint_of(weights);
   if (fs::exists(checkpoint)) {
-    const nn::LoadedCheckpoint c = nn::load_checkpoint(checkpoint, net, adam);
+    const nn::LoadedCheckpoint c = resume_from(checkpoint, net, adam);
     schedule = c.schedule;
     loader.seek({c.progress.epoch, c.progress.position});
   }
@@ -377,7 +387,7 @@ bool train_ae2(const ExperimentConfig& config, const TrainingData& data, const S
   nn::LrSchedule schedule = t.optimizer.make_schedule(t.steps);
   const fs::path weights = ae2_file(run_dir, model.name), checkpoint = checkpoint_of(weights);
   if (fs::exists(checkpoint))
-    schedule = nn::load_checkpoint(checkpoint, net, adam).schedule;
+    schedule = resume_from(checkpoint, net, adam).schedule;
   const std::int64_t first = adam.steps();
   const std::string stage = "ae2 " + model.name;
   metrics.truncate([&](const nlohmann::json& r) {

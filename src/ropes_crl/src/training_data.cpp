@@ -50,6 +50,7 @@ TrainingData TrainingData::open(const ExperimentConfig& config, const fs::path& 
   const fs::path manifest = dir / "manifest.json";
   d.dataset_id = read_json_file(manifest).value("dataset", "");
   d.rows = d.reader.rows();
+  d.reader.verify();  // a shard damaged after generation is refused, never trained on
   expect_column(d.reader, manifest, "images", nn::DType::kU8);
   expect_column(d.reader, manifest, "regime", nn::DType::kI32);
   expect_column(d.reader, manifest, "anchor", nn::DType::kI64);

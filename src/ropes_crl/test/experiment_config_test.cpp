@@ -81,6 +81,13 @@ TEST(ExperimentConfig, ErrorsNameTheFileTheFieldAndTheValue) {
   j = c.raw;
   j["ae1"].erase("optimizer");
   EXPECT_NE(error_of(j).find("config.ae1.optimizer: missing"), std::string::npos) << error_of(j);
+  // a name is never a path: ropes-run's default output is runs/<name>
+  for (const char* name : {"../../tmp/x", "/etc/x", ".hidden", "a/b", ""}) {
+    j = c.raw;
+    j["name"] = name;
+    EXPECT_NE(error_of(j).find("config.name: expected a plain name"), std::string::npos)
+        << name << ": " << error_of(j);
+  }
   j = c.raw;
   j["ae1"]["epochs"] = 1;  // beside "steps"
   EXPECT_NE(error_of(j).find("exactly one of"), std::string::npos) << error_of(j);

@@ -2,6 +2,7 @@
 #include <ropes_crl/estimator.hpp>
 #include <ropes_msgs/dds.hpp>
 #include <ropes_nn/dataset.hpp>
+#include <ropes_nn/npy.hpp>
 
 #include "frame_grouper.hpp"
 
@@ -146,10 +147,8 @@ class Node {
 };
 
 ropes::crl::Calibration read_calibration(const fs::path& file) {
-  std::ifstream in(file);
-  if (!in)
-    throw std::runtime_error(file.string() + ": cannot be read");
-  const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
+  const nlohmann::json j = nlohmann::json::parse(
+      ropes::nn::read_text_file(file, ropes::nn::kMaxJsonFileBytes), nullptr, false);
   if (j.is_discarded())
     throw std::runtime_error(file.string() + ": not valid JSON");
   try {

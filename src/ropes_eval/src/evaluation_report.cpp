@@ -7,6 +7,7 @@
 #include <limits>
 #include <sstream>
 
+#include "json_file.hpp"
 #include "ropes_eval/supervised.hpp"
 #include "text_format.hpp"
 
@@ -48,11 +49,8 @@ const MethodSummary* method(const RunEvaluation& ev, const std::string& name) {
 
 nlohmann::json paper_suite_numbers(const std::string& setting, const fs::path& paper_results) {
   const fs::path file = paper_results.empty() ? installed_paper_results() : paper_results;
-  std::ifstream in(file);
-  std::stringstream text;
-  text << in.rdbuf();
-  const nlohmann::json paper = nlohmann::json::parse(text.str(), nullptr, false);
-  if (!in || paper.is_discarded())
+  const nlohmann::json paper = detail::read_json_if_there(file);
+  if (paper.is_discarded())
     throw nn::FileFormatError(file.string() + ": cannot be read as JSON");
   nlohmann::json out = {
       {"appendix", nullptr}, {"table1_occlusion", nullptr}, {"robopepp", nullptr}};

@@ -14,6 +14,7 @@
 #include <map>
 #include <sstream>
 
+#include "json_file.hpp"
 #include "png.hpp"
 #include "ropes_eval/occlusion.hpp"
 #include "ropes_eval/supervised.hpp"
@@ -305,10 +306,7 @@ std::uint8_t to_byte(float v) {
 }
 
 nlohmann::json read_json(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream t;
-  t << in.rdbuf();
-  return nlohmann::json::parse(t.str(), nullptr, false);
+  return detail::read_json_if_there(p);
 }
 
 }  // namespace
@@ -490,9 +488,7 @@ std::string html_report(const EvaluationReport& report, const fs::path& run_dir,
   // training curves
   h << "<h2>Training curves</h2>\n";
   std::map<std::string, std::map<std::string, Series>> curves;  // stage -> model -> series
-  std::ifstream in(run_dir / "metrics.jsonl");
-  std::string line;
-  while (std::getline(in, line)) {
+  for (const std::string& line : detail::read_log_lines(run_dir / "metrics.jsonl")) {
     const nlohmann::json m = nlohmann::json::parse(line, nullptr, false);
     if (!m.is_object() || !m.contains("stage") || !m["stage"].is_string())
       continue;

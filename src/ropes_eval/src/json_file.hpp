@@ -5,22 +5,43 @@
 #include <nlohmann/json.hpp>
 
 #include <filesystem>
-#include <fstream>
 #include <sstream>
+#include <string>
+#include <vector>
 
 namespace ropes::eval::detail {
 
-// the file's JSON; nn::FileFormatError naming it when it cannot be opened or parsed
+// the file's JSON; nn::FileFormatError naming it when it cannot be opened or parsed, or
+// holds more than nn::kMaxJsonFileBytes (refused by its size, before it is read)
 inline nlohmann::json read_json_file(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  if (!in)
-    throw nn::FileFormatError(path.string() + ": cannot be opened");
-  std::stringstream text;
-  text << in.rdbuf();
-  const nlohmann::json j = nlohmann::json::parse(text.str(), nullptr, false);
+  const nlohmann::json j =
+      nlohmann::json::parse(nn::read_text_file(path, nn::kMaxJsonFileBytes), nullptr, false);
   if (j.is_discarded())
     throw nn::FileFormatError(path.string() + ": not valid JSON");
   return j;
+}
+
+// the file's JSON, or a discarded value when it is missing or not JSON (a file that may be
+// absent); one over nn::kMaxJsonFileBytes is still refused (nn::FileFormatError)
+inline nlohmann::json read_json_if_there(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec))
+    return nlohmann::json(nlohmann::json::value_t::discarded);
+  return nlohmann::json::parse(nn::read_text_file(path, nn::kMaxJsonFileBytes), nullptr, false);
+}
+
+// the lines of a log that may be absent (none then); one over nn::kMaxLogFileBytes is
+// refused (nn::FileFormatError)
+inline std::vector<std::string> read_log_lines(const std::filesystem::path& path) {
+  std::vector<std::string> lines;
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec))
+    return lines;
+  std::istringstream in(nn::read_text_file(path, nn::kMaxLogFileBytes));
+  std::string line;
+  while (std::getline(in, line))
+    lines.push_back(line);
+  return lines;
 }
 
 }  // namespace ropes::eval::detail

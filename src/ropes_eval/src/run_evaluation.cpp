@@ -257,6 +257,7 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
 
   // the test dataset: not the training set, the run's cameras and image size
   const nn::DatasetReader reader = nn::DatasetReader::open(data_dir);
+  reader.verify();  // a shard damaged after generation is refused, never evaluated on
   const fs::path manifest = data_dir / "manifest.json";
   ev.dataset_id = detail::read_json_file(manifest).value("dataset", "");
   if (ev.dataset_id == ev.train_dataset_id)

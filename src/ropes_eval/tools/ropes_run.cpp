@@ -3,6 +3,7 @@
 // resumable at and inside its stages.
 #include <ropes_crl/experiment_config.hpp>
 #include <ropes_crl/trainer.hpp>
+#include <ropes_nn/npy.hpp>
 #include <ropes_nn/parallel.hpp>
 #include <ropes_sim/dataset_config.hpp>
 #include <ropes_sim/dataset_generator.hpp>
@@ -69,8 +70,8 @@ void write_text(const fs::path& path, const std::string& text) {
 nlohmann::json read_state(const fs::path& p) {
   if (!fs::exists(p))
     return nlohmann::json::object();
-  std::ifstream in(p);
-  const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
+  const nlohmann::json j = nlohmann::json::parse(
+      ropes::nn::read_text_file(p, ropes::nn::kMaxJsonFileBytes), nullptr, false);
   const bool shaped = j.is_object() && j.value("format", "") == "ropes-run" &&
                       (!j.contains("identity") || j["identity"].is_object()) &&
                       (!j.contains("stages") || j["stages"].is_object());
@@ -152,6 +153,14 @@ int run(int argc, char** argv) {
   const fs::path train_data = dir / "train-data", run_dir = dir / "run",
                  report_dir = dir / "report", state_file = dir / "ropes-run.json";
   fs::create_directories(dir);
+  // OUT is the user's; what ropes-run makes inside it stays inside it
+  for (const fs::path& inside : {train_data, run_dir, report_dir, dir / "test-data", state_file}) {
+    std::error_code ec;
+    if (fs::is_symlink(inside, ec))
+      throw std::runtime_error(inside.string() +
+                               " is a symbolic link; ropes-run writes only inside " + dir.string() +
+                               " (remove the link)");
+  }
   // the state: what this directory is for, and the stages finished
   nlohmann::json state = read_state(state_file);
   const nlohmann::json identity = {{"config", config.raw},

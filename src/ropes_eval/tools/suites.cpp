@@ -2,6 +2,7 @@
 
 #include <ropes_eval/html_report.hpp>
 #include <ropes_eval/supervised.hpp>
+#include <ropes_nn/npy.hpp>
 
 #include <nlohmann/json.hpp>
 
@@ -43,8 +44,12 @@ struct RunFacts {
 RunFacts run_facts(const fs::path& run_dir) {
   RunFacts f;
   const fs::path run_file = run_dir / "run.json";
-  std::ifstream in(run_file);
-  const nlohmann::json run = nlohmann::json::parse(in, nullptr, false);
+  std::error_code ec;
+  const nlohmann::json run =
+      fs::is_regular_file(run_file, ec)
+          ? nlohmann::json::parse(nn::read_text_file(run_file, nn::kMaxJsonFileBytes), nullptr,
+                                  false)
+          : nlohmann::json();
   if (!run.is_object())
     throw std::invalid_argument(run_file.string() + ": missing or not JSON; is '" +
                                 run_dir.string() + "' a run directory of ropes-train?");
@@ -52,8 +57,11 @@ RunFacts run_facts(const fs::path& run_dir) {
   if (run.contains(side) && run[side].is_number_integer())
     f.image_side = run[side].get<std::int64_t>();
   const fs::path manifest = fs::path(run.value("data_dir", "")) / "manifest.json";
-  std::ifstream m(manifest);
-  const nlohmann::json j = nlohmann::json::parse(m, nullptr, false);
+  const nlohmann::json j =
+      fs::is_regular_file(manifest, ec)
+          ? nlohmann::json::parse(nn::read_text_file(manifest, nn::kMaxJsonFileBytes), nullptr,
+                                  false)
+          : nlohmann::json();
   const nlohmann::json::json_pointer seed("/metadata/seed");
   if (j.is_object() && j.contains(seed)) {
     if (!j[seed].is_number_unsigned())

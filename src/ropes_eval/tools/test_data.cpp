@@ -1,5 +1,6 @@
 #include "test_data.hpp"
 
+#include <ropes_nn/npy.hpp>
 #include <ropes_nn/sha256.hpp>
 #include <ropes_sim/dataset_config.hpp>
 #include <ropes_sim/dataset_generator.hpp>
@@ -7,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cctype>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
@@ -19,12 +21,11 @@ namespace fs = std::filesystem;
 namespace {
 
 std::string read_text(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  if (!in)
-    throw std::invalid_argument(p.string() + ": cannot be opened");
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
+  try {
+    return nn::read_text_file(p, nn::kMaxJsonFileBytes);
+  } catch (const nn::FileFormatError& e) {
+    throw std::invalid_argument(e.what());
+  }
 }
 
 nlohmann::json read_json(const fs::path& p) {
@@ -34,7 +35,20 @@ nlohmann::json read_json(const fs::path& p) {
   return j;
 }
 
+// a config name as it may appear in a path: letters, digits, '_', '-', '.', not starting
+// with '.' (no "..", no '/'): the name in a manifest comes from whoever wrote the dataset
+bool is_plain_name(const std::string& name) {
+  if (name.empty() || name.size() > 128 || name[0] == '.')
+    return false;
+  for (const char c : name)
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_' && c != '-' && c != '.')
+      return false;
+  return true;
+}
+
 fs::path installed_config(const std::string& name) {
+  if (!is_plain_name(name))
+    return fs::path();  // never a path out of the installed directory
   const fs::path p = fs::path(ROPES_SIM_DATASETS_DIR) / (name + ".json");
   return fs::is_regular_file(p) ? p : fs::path();
 }

@@ -132,11 +132,14 @@ class WorkerPool {
 };
 
 Json read_json(const fs::path& path) {
-  std::ifstream in(path);
-  if (!in)
-    throw std::runtime_error(path.string() + ": cannot be read");
+  std::string text;
   try {
-    return Json::parse(in);
+    text = nn::read_text_file(path, nn::kMaxJsonFileBytes);
+  } catch (const nn::FileFormatError& e) {
+    throw std::runtime_error(e.what());
+  }
+  try {
+    return Json::parse(text);
   } catch (const Json::exception& e) {
     throw std::runtime_error(path.string() + ": not JSON (" + e.what() + ")");
   }
@@ -342,18 +345,32 @@ GenerateResult generate_dataset(const DatasetConfig& config, const GenerateOptio
   GenerateResult result;
   result.warnings = scene->warnings();
   if (prepare_directory(options.out, metadata)) {
+    // finished before: its files must still be what the manifest records
+    try {
+      nn::DatasetReader::open(options.out).verify();
+    } catch (const nn::FileFormatError& e) {
+      throw std::runtime_error(std::string(e.what()) + "; remove " +
+                               (options.out / "manifest.json").string() +
+                               " and run again to redo the damaged shards");
+    }
     result.complete = true;
     result.shards_skipped = shards;
     return result;
   }
 
-  // the shards this run owns that are not done yet (a shard of another dataset is redone)
+  // the shards this run owns that are not done yet (a shard of another dataset is redone,
+  // and so is one whose files no longer hash to its marker's SHA-256s)
   std::vector<int> todo;
   for (int shard = options.shard_index; shard < shards; shard += options.shard_count) {
-    if (nn::dataset_shard_complete(options.out, shard, columns, id))
+    const std::string problem =
+        nn::dataset_shard_problem(options.out, shard, columns, id, /*check_sha256=*/true);
+    if (problem.empty()) {
       ++result.shards_skipped;
-    else
+    } else {
+      if (problem.find("(the file changed after it was written)") != std::string::npos)
+        result.warnings.push_back("shard " + std::to_string(shard) + " is redone: " + problem);
       todo.push_back(shard);
+    }
   }
 
   if (!todo.empty()) {

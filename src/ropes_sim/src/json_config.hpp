@@ -7,6 +7,7 @@
 #include <fstream>
 #include <string>
 
+#include "ropes_nn/npy.hpp"
 #include "ropes_sim/intervention_sampler.hpp"  // ConfigError
 
 namespace ropes::sim::detail {
@@ -15,13 +16,16 @@ namespace ropes::sim::detail {
 // JSON or is not an object. `what` names the kind of file in the message.
 inline nlohmann::json read_config_object(const std::filesystem::path& path, const char* what) {
   const std::string file = path.string();
-  std::ifstream in(path);
-  if (!in)
-    throw ConfigError(file + ": cannot open the " + what);
+  std::string text;
+  try {
+    text = nn::read_text_file(path, nn::kMaxJsonFileBytes);  // a huge file: refused by size
+  } catch (const nn::FileFormatError& e) {
+    throw ConfigError(std::string(e.what()) + " (the " + what + ")");
+  }
   nlohmann::json config;
   // nlohmann's message says where the text stops being JSON: keep it
   try {
-    config = nlohmann::json::parse(in);
+    config = nlohmann::json::parse(text);
   } catch (const nlohmann::json::exception& e) {
     throw ConfigError(file + ": not JSON: " + e.what());
   }

@@ -18,6 +18,9 @@ std::filesystem::path resolve_mesh_path(const std::string& filename,
   const std::string kPackage = "package://", kFile = "file://";
   if (filename.rfind(kFile, 0) == 0) {
     const fs::path p = filename.substr(kFile.size());
+    if (!p.is_absolute())  // a URL's path; never one relative to the working directory
+      throw ModelError(source + ": mesh '" + filename +
+                       "' is not an absolute file URL; expected file:///path/to/mesh");
     if (found(p))
       return p;
   } else if (filename.rfind(kPackage, 0) == 0) {

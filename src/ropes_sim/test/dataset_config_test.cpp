@@ -62,6 +62,25 @@ TEST(DatasetConfig, BadFieldsAreNamed) {
                 .find("rig.cameras[0]: camera 'c': fov_y_deg = 0"),
             std::string::npos);
   EXPECT_NE(message("{\"name\": ").find("not JSON"), std::string::npos);
+  // a name is never a path (ropes-eval names its test-set cache directories after it)
+  for (const char* name : {"../../tmp/x", "/etc/x", ".hidden", "a/b"}) {
+    EXPECT_NE(with("\"name\": \"tiny\"", std::string("\"name\": \"") + name + "\"")
+                  .find("name is '" + std::string(name) + "'; expected a plain name"),
+              std::string::npos)
+        << name;
+  }
+  // a config file of 2 GiB (sparse) is refused by its size, before it is read
+  std::ofstream(dir / "c.json") << "{";
+  fs::resize_file(dir / "c.json", std::uint64_t{2} << 30);
+  try {
+    DatasetConfig::load(dir / "c.json");
+    ADD_FAILURE() << "a 2 GiB config loaded";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("holds 2147483648 bytes; expected at most 16777216"),
+              std::string::npos)
+        << e.what();
+  }
+  fs::remove(dir / "c.json");
 }
 
 }  // namespace

@@ -54,6 +54,19 @@ TEST(Scene, MeshPathsResolveAsPackageRelativeAndFileUrls) {
   EXPECT_EQ(resolve_mesh_path("file://" + a.string(), {}, "r"), a);
   for (const char* f : {"package://my_robot/meshes/a.stl", "../meshes/a.stl", "b.stl"})
     EXPECT_EQ(Scene::build(model_with(f))->meshes().front().vertex_count(), 3) << f;
+  // a relative path is looked for in the URDF's directory only, not in its parents
+  std::ofstream(root / "my_robot" / "c.stl") << stl;
+  EXPECT_THROW(resolve_mesh_path("c.stl", root / "my_robot" / "urdf", "r"), ModelError);
+  EXPECT_EQ(resolve_mesh_path("../c.stl", root / "my_robot" / "urdf", "r"),
+            root / "my_robot" / "urdf" / ".." / "c.stl");
+  // a file URL is absolute: never relative to the working directory
+  try {
+    resolve_mesh_path("file://meshes/a.stl", root, "r.urdf");
+    ADD_FAILURE() << "a relative file URL resolved";
+  } catch (const ModelError& e) {
+    EXPECT_NE(std::string(e.what()).find("is not an absolute file URL"), std::string::npos)
+        << e.what();
+  }
   // a package URL that names no file is an error, not a crash
   for (const char* f : {"package://", "package:///abs.stl"}) {
     try {

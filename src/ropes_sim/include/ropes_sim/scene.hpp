@@ -53,11 +53,15 @@ struct SceneItem {
 class Scene {
  public:
   /// Builds the scene of `model`: a mesh per primitive, each mesh file loaded once.
-  /// Mesh paths: "package://PKG/rest" and relative paths are looked for relative to the
-  /// URDF's directory and its parents (the first that exists wins, as ROS does for a
-  /// package found on the path). Throws ModelError naming the URDF, the link, the path as
-  /// written and the places looked in when a mesh file does not exist; MeshError (naming
-  /// the mesh file and line) when one cannot be read.
+  /// Mesh paths (resolve_mesh_path), the only places a mesh is looked for: a relative path
+  /// (`../` included) in the URDF's directory; "package://PKG/rest" as DIR/PKG/rest, or as
+  /// DIR/rest when DIR is named PKG, for DIR the URDF's directory and then each of its
+  /// parents (the first that exists wins, as ROS does for a package found on the path);
+  /// "file:///abs" and an absolute path as written. Meshes are only read. Throws
+  /// ModelError naming the URDF, the link, the path as written and the places looked in
+  /// when a mesh file does not exist, or for "package://" without a path and a "file://"
+  /// URL that is not absolute; MeshError (naming the mesh file and line) when one cannot
+  /// be read.
   static std::shared_ptr<const Scene> build(const RobotModel& model,
                                             const SceneOptions& options = {});
 
