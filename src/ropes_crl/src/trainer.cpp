@@ -585,6 +585,15 @@ void train(const ExperimentConfig& config_in, const fs::path& data_dir, const fs
   const fs::path run_json = run_dir / "run.json";
   nn::remove_stale_temporaries(run_dir);
   const MetricsLog metrics(run_dir / "metrics.jsonl", options.on_metrics);
+  // a kill between a network's final weights and the removal of its checkpoint leaves the
+  // checkpoint of a finished network behind (found by ropes_eval's fault-injection test): it
+  // goes now, so that a resumed run ends with the files of an uninterrupted one
+  std::vector<fs::path> networks = {ae1_file(run_dir)};
+  for (const Ae2Model& model : ae2_models(config))
+    networks.push_back(ae2_file(run_dir, model.name));
+  for (const fs::path& weights : networks)
+    if (fs::exists(weights))
+      fs::remove(checkpoint_of(weights));
 
   // stage 1: AE1, then the codes
   if (!fs::exists(codes_file(run_dir))) {
