@@ -1,5 +1,6 @@
 // Fault injection through the executables a user runs (the hardening issue): SIGKILL at
-// seeded random moments of ropes-generate, ropes-train and ropes-run, three times over, then
+// seeded random moments of ropes-generate, ropes-train and ropes-run (a line of their output
+// and a delay after it), three times over, then
 // the same command to the end; a file-size limit (RLIMIT_FSIZE, which fails a write the way
 // a full disk does) while a shard, a checkpoint or a report is written; a byte changed in a
 // finished shard, a checkpoint and a weights file. Each time the job either resumes to the
@@ -20,6 +21,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -48,14 +50,23 @@ struct Job {
   int status = 0;
   std::string text;  // stdout and stderr together
   double seconds = 0;
+  std::vector<double> line_times;  // when each line of `text` arrived, seconds after the start
   bool killed() const { return WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL; }
   int rc() const { return WIFEXITED(status) ? WEXITSTATUS(status) : -1; }
 };
 
-// runs args (args[0] the executable), output into a pipe; SIGKILLed after `kill_after`
-// seconds when that is >= 0 and it still runs; with `file_limit` > 0, under RLIMIT_FSIZE of
-// that many bytes with SIGXFSZ ignored, so that a write past it fails with EFBIG
-Job run_job(const std::vector<std::string>& args, double kill_after = -1,
+// where to SIGKILL a job: `delay` seconds after it has printed `lines` lines (0: after its
+// start); none when lines < 0. A moment tied to the job's progress, not to the clock, lands
+// inside the job however fast this machine runs it
+struct KillPoint {
+  int lines = -1;
+  double delay = 0;
+};
+
+// runs args (args[0] the executable), output into a pipe, SIGKILLed at `kill` when it still
+// runs then; with `file_limit` > 0, under RLIMIT_FSIZE of that many bytes with SIGXFSZ
+// ignored, so that a write past it fails with EFBIG
+Job run_job(const std::vector<std::string>& args, KillPoint kill = {},
             std::uint64_t file_limit = 0) {
   Job job;
   int fds[2];
@@ -81,20 +92,39 @@ Job run_job(const std::vector<std::string>& args, double kill_after = -1,
     ::_exit(127);
   }
   ::close(fds[1]);
+  std::atomic<int> lines{0};
   std::thread reader([&] {
     char buf[4096];
     ssize_t n;
-    while ((n = ::read(fds[0], buf, sizeof buf)) > 0)
+    while ((n = ::read(fds[0], buf, sizeof buf)) > 0) {
       job.text.append(buf, static_cast<std::size_t>(n));
+      const auto count = static_cast<int>(std::count(buf, buf + n, '\n'));
+      const double at = std::chrono::duration<double>(Clock::now() - start).count();
+      job.line_times.insert(job.line_times.end(), static_cast<std::size_t>(count), at);
+      lines += count;
+    }
   });
-  if (kill_after >= 0) {
-    const Clock::time_point deadline =
-        start + std::chrono::microseconds(static_cast<std::int64_t>(kill_after * 1e6));
-    while (Clock::now() < deadline && ::waitpid(pid, &job.status, WNOHANG) == 0)
-      std::this_thread::sleep_for(std::chrono::milliseconds(2));
-    ::kill(pid, SIGKILL);  // harmless when it has ended: it is not reaped yet, or reaped now
+  bool reaped = false;
+  if (kill.lines >= 0) {
+    Clock::time_point seen{};  // when the line count reached kill.lines
+    const auto delay = std::chrono::microseconds(static_cast<std::int64_t>(kill.delay * 1e6));
+    while (true) {
+      if (::waitpid(pid, &job.status, WNOHANG) == pid) {
+        reaped = true;  // it ended before the moment
+        break;
+      }
+      const Clock::time_point now = Clock::now();
+      if (seen == Clock::time_point{} && lines >= kill.lines)
+        seen = now;
+      if (seen != Clock::time_point{} && now >= seen + delay) {
+        ::kill(pid, SIGKILL);
+        break;
+      }
+      std::this_thread::sleep_for(std::chrono::microseconds(500));
+    }
   }
-  ::waitpid(pid, &job.status, 0);
+  if (!reaped)
+    ::waitpid(pid, &job.status, 0);
   job.seconds = std::chrono::duration<double>(Clock::now() - start).count();
   reader.join();
   ::close(fds[0]);
@@ -220,10 +250,10 @@ class FaultInjection : public ::testing::Test {
     // the references: each tool once, uninterrupted, timed
     const Job g = run_job(generate_args(dir_ / "ref_data"));
     ASSERT_EQ(g.rc(), 0) << g.text;
-    generate_seconds_ = g.seconds;
+    generate_ = {g.line_times, g.seconds};
     const Job t = run_job(train_args(dir_ / "ref_run"));
     ASSERT_EQ(t.rc(), 0) << t.text;
-    train_seconds_ = t.seconds;
+    train_ = {t.line_times, t.seconds};
   }
   static void TearDownTestSuite() { fs::remove_all(dir_); }
 
@@ -258,27 +288,41 @@ class FaultInjection : public ::testing::Test {
             "id"};
   }
 
-  // kills `args` at three seeded moments in (0, seconds), checking for damage after each,
-  // then runs it to the end and compares the whole tree with `ref`
+  // an uninterrupted run: when each line of its output came, and how long it took
+  struct Reference {
+    std::vector<double> line_times;
+    double seconds = 0;
+  };
+
+  // kills `args` at three seeded moments, checking for damage after each, then runs it to
+  // the end and compares the whole tree with `ref`. A moment is drawn uniformly in 5-90 %
+  // of the uninterrupted run's time and tied to its progress there: the line printed last
+  // before it, and the time since that line (a machine that runs faster or slower now
+  // still kills at the same stage). A resumed run has less to do, so a later kill may find
+  // it finished
   static void kill_three_times_then_finish(const std::vector<std::string>& args,
-                                           const fs::path& out, double seconds,
+                                           const fs::path& out, const Reference& whole,
                                            const std::map<std::string, std::string>& ref,
                                            std::uint64_t stream) {
     std::mt19937_64 rng(fault_seed() * 1000003 + stream);
     std::uniform_real_distribution<double> moment(0.05, 0.9);
     int kills = 0;
     for (int i = 0; i < 3; ++i) {
-      const double at = moment(rng) * seconds;
+      const double t = moment(rng) * whole.seconds;
+      KillPoint at{0, t};
+      for (std::size_t k = 0; k < whole.line_times.size() && whole.line_times[k] <= t; ++k)
+        at = {static_cast<int>(k) + 1, t - whole.line_times[k]};
       const Job j = run_job(args, at);
-      std::printf("[ fault    ] seed %llu: %s killed at %.2f s of %.2f: %s\n",
-                  static_cast<unsigned long long>(fault_seed()), args[0].c_str(), at, seconds,
-                  j.killed() ? "killed" : "it had finished");
+      std::printf("[ fault    ] seed %llu: %s killed %.3f s after line %d (%.2f s of %.2f): %s\n",
+                  static_cast<unsigned long long>(fault_seed()), args[0].c_str(), at.delay,
+                  at.lines, t, whole.seconds, j.killed() ? "killed" : "it had finished");
       if (j.killed())
         ++kills;
       else
         ASSERT_EQ(j.rc(), 0) << tail(j.text);
       const auto problems = damage(out, ref, true);
-      EXPECT_TRUE(problems.empty()) << "after the kill at " << at << " s:\n" << joined(problems);
+      EXPECT_TRUE(problems.empty()) << "after the kill after line " << at.lines << ":\n"
+                                    << joined(problems);
     }
     EXPECT_GE(kills, 1) << "no kill landed while the job ran";
     const Job last = run_job(args);
@@ -293,7 +337,7 @@ class FaultInjection : public ::testing::Test {
   static void fill_the_disk_then_finish(const std::vector<std::string>& args, const fs::path& out,
                                         const std::map<std::string, std::string>& ref,
                                         std::uint64_t limit) {
-    const Job full = run_job(args, -1, limit);
+    const Job full = run_job(args, {}, limit);
     std::printf("[ fault    ] seed %llu: %s under a %llu-byte file limit: exit %d\n",
                 static_cast<unsigned long long>(fault_seed()), args[0].c_str(),
                 static_cast<unsigned long long>(limit), full.rc());
@@ -315,22 +359,21 @@ class FaultInjection : public ::testing::Test {
   }
 
   static fs::path dir_;
-  static double generate_seconds_, train_seconds_;
+  static Reference generate_, train_;
 };
 fs::path FaultInjection::dir_;
-double FaultInjection::generate_seconds_ = 0, FaultInjection::train_seconds_ = 0;
+FaultInjection::Reference FaultInjection::generate_, FaultInjection::train_;
 
 }  // namespace
 
 TEST_F(FaultInjection, GenerateKilledAtRandomMomentsResumesToTheSameBytes) {
   const fs::path out = dir_ / "gen_killed";
-  kill_three_times_then_finish(generate_args(out), out, generate_seconds_,
-                               tree_of(dir_ / "ref_data"), 1);
+  kill_three_times_then_finish(generate_args(out), out, generate_, tree_of(dir_ / "ref_data"), 1);
 }
 
 TEST_F(FaultInjection, TrainKilledAtRandomMomentsResumesToTheSameBytes) {
   const fs::path out = dir_ / "train_killed";
-  kill_three_times_then_finish(train_args(out), out, train_seconds_, tree_of(dir_ / "ref_run"), 2);
+  kill_three_times_then_finish(train_args(out), out, train_, tree_of(dir_ / "ref_run"), 2);
 }
 
 TEST_F(FaultInjection, RopesRunKilledAtRandomMomentsResumesToTheSameBytes) {
@@ -340,7 +383,7 @@ TEST_F(FaultInjection, RopesRunKilledAtRandomMomentsResumesToTheSameBytes) {
   ASSERT_EQ(whole.rc(), 0) << tail(whole.text);
   const auto ref = tree_of(out);
   fs::remove_all(out);
-  kill_three_times_then_finish(run_args(out), out, whole.seconds, ref, 3);
+  kill_three_times_then_finish(run_args(out), out, {whole.line_times, whole.seconds}, ref, 3);
 }
 
 // A full disk while a shard, a checkpoint or a report is written (a limit below that file's
