@@ -1,6 +1,9 @@
 // ropes_nn_fuzz_make_corpus DIR: writes the seed corpora of ropes_nn's checkpoint, dataset
 // and safetensors harnesses into DIR/<harness>/ (fuzz/corpus/ holds what it wrote; the npy
-// corpus is numpy's files from test/fixtures). Run by hand when a format changes.
+// corpus is numpy's files from test/fixtures). Run by hand when a format changes; the seeds
+// of an older format stay (checkpoint/training_state.safetensors and weights.safetensors are
+// format_version 1, unsealed; the *_sealed ones and safetensors/sealed.safetensors are what
+// this writes now).
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
