@@ -1,7 +1,5 @@
 #include "ropes_crl/experiment_config.hpp"
 
-#include <algorithm>
-#include <cctype>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
@@ -61,12 +59,7 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
     c.raw = j;
     c.name = get_string(j, "config", "name");
     // ropes-run's default output is runs/<name>: a name is never a path
-    const bool plain = !c.name.empty() && c.name.size() <= 128 && c.name[0] != '.' &&
-                       std::all_of(c.name.begin(), c.name.end(), [](char ch) {
-                         return std::isalnum(static_cast<unsigned char>(ch)) || ch == '_' ||
-                                ch == '-' || ch == '.';
-                       });
-    if (!plain) {
+    if (!nn::is_plain_name(c.name)) {
       throw std::invalid_argument(
           "config.name: expected a plain name (letters, digits, '_', "
           "'-', '.', not starting with '.'; at most 128 characters), "

@@ -8,7 +8,6 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
-#include <cctype>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
@@ -35,20 +34,11 @@ nlohmann::json read_json(const fs::path& p) {
   return j;
 }
 
-// a config name as it may appear in a path: letters, digits, '_', '-', '.', not starting
-// with '.' (no "..", no '/'): the name in a manifest comes from whoever wrote the dataset
-bool is_plain_name(const std::string& name) {
-  if (name.empty() || name.size() > 128 || name[0] == '.')
-    return false;
-  for (const char c : name)
-    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_' && c != '-' && c != '.')
-      return false;
-  return true;
-}
-
 fs::path installed_config(const std::string& name) {
-  if (!is_plain_name(name))
-    return fs::path();  // never a path out of the installed directory
+  // the name in a manifest comes from whoever wrote the dataset: never a path out of the
+  // installed directory
+  if (!nn::is_plain_name(name))
+    return fs::path();
   const fs::path p = fs::path(ROPES_SIM_DATASETS_DIR) / (name + ".json");
   return fs::is_regular_file(p) ? p : fs::path();
 }

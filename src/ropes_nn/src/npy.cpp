@@ -5,6 +5,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <charconv>
 
 #include <cctype>
@@ -422,6 +423,14 @@ void write_file_atomically(const std::filesystem::path& path, const std::uint8_t
     ::fsync(dir);
     ::close(dir);
   }
+}
+
+bool is_plain_name(const std::string& name, std::size_t max_length) {
+  if (name.empty() || name.size() > max_length || name[0] == '.')
+    return false;
+  return std::all_of(name.begin(), name.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.';
+  });
 }
 
 std::string read_text_file(const std::filesystem::path& path, std::uint64_t max_bytes) {

@@ -134,6 +134,17 @@ TEST(TextFile, RefusesAFileOverItsLimitBeforeReadingIt) {
   fs::remove_all(dir);
 }
 
+// the names tools make directories of: never a path
+TEST(TextFile, PlainNamesAreNeverPaths) {
+  for (const char* good : {"1c-tiny", "small-2c_causal", "a.b", "x"})
+    EXPECT_TRUE(is_plain_name(good)) << good;
+  for (const char* bad : {"", ".", "..", "../x", "/etc", "a/b", ".hidden", "a b", "a\\b"})
+    EXPECT_FALSE(is_plain_name(bad)) << bad;
+  EXPECT_TRUE(is_plain_name(std::string(128, 'a')));
+  EXPECT_FALSE(is_plain_name(std::string(129, 'a')));
+  EXPECT_FALSE(is_plain_name("abcd", 3));
+}
+
 // numpy itself opens what write_npy wrote, with the dtype and values of the fixture it made
 TEST(NpyGolden, NumpyLoadsWhatWeWrite) {
   if (std::system("/usr/bin/python3 -c 'import numpy' 2>/dev/null") != 0) {

@@ -2,7 +2,6 @@
 
 #include <nlohmann/json.hpp>
 
-#include <cctype>
 #include <fstream>
 #include <set>
 #include <system_error>
@@ -58,15 +57,6 @@ std::int64_t integer(const Json& v, const std::string& file, const std::string& 
     fail(file, field + " is " + v.dump() + "; expected an integer in [" + std::to_string(lo) +
                    ", " + std::to_string(hi) + "]");
   return v.get<std::int64_t>();
-}
-
-bool is_plain_name(const std::string& name) {
-  if (name.empty() || name.size() > 128 || name[0] == '.')
-    return false;
-  for (const char c : name)
-    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_' && c != '-' && c != '.')
-      return false;
-  return true;
 }
 
 std::string text(const Json& v, const std::string& file, const std::string& field) {
@@ -130,7 +120,7 @@ DatasetConfig DatasetConfig::load(const std::filesystem::path& path) {
   DatasetConfig c;
   c.file = path;
   c.name = text(required(config, "name", file, ""), file, "name");
-  if (!is_plain_name(c.name)) {
+  if (!nn::is_plain_name(c.name)) {
     fail(file, "name is '" + c.name.substr(0, 64) +
                    "'; expected a plain name (letters, digits, '_', '-', '.', not starting "
                    "with '.'; at most 128 characters): tools name directories after it");

@@ -94,6 +94,11 @@ void write_npy(const std::filesystem::path& path, const NpyArray& array);
 void write_file_atomically(const std::filesystem::path& path, const std::uint8_t* bytes,
                            std::size_t size);
 
+/// True when `name` can name a file or directory as it is, never a path: 1 to `max_length`
+/// letters, digits, '_', '-', '.', not starting with '.' (so no "..", no '/'). The config
+/// names that tools name directories after must be such names.
+bool is_plain_name(const std::string& name, std::size_t max_length = 128);
+
 /// The limit on a JSON file that configures or records a run (configs, run.json, state and
 /// result files) and on a metrics log, for read_text_file.
 inline constexpr std::uint64_t kMaxJsonFileBytes = std::uint64_t{16} << 20;
