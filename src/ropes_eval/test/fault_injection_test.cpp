@@ -56,11 +56,13 @@ struct Job {
 };
 
 // where to SIGKILL a job: `delay` seconds after it has printed `lines` lines (0: after its
-// start); none when lines < 0. A moment tied to the job's progress, not to the clock, lands
-// inside the job however fast this machine runs it
+// start), or as soon as its output holds `text`; none when lines < 0 and text is empty. A
+// moment tied to the job's progress, not to the clock, lands inside the job however fast
+// this machine runs it
 struct KillPoint {
   int lines = -1;
   double delay = 0;
+  std::string text;
 };
 
 // runs args (args[0] the executable), output into a pipe, SIGKILLed at `kill` when it still
@@ -93,6 +95,7 @@ Job run_job(const std::vector<std::string>& args, KillPoint kill = {},
   }
   ::close(fds[1]);
   std::atomic<int> lines{0};
+  std::atomic<bool> text_seen{false};
   std::thread reader([&] {
     char buf[4096];
     ssize_t n;
@@ -102,10 +105,12 @@ Job run_job(const std::vector<std::string>& args, KillPoint kill = {},
       const double at = std::chrono::duration<double>(Clock::now() - start).count();
       job.line_times.insert(job.line_times.end(), static_cast<std::size_t>(count), at);
       lines += count;
+      if (!kill.text.empty() && job.text.find(kill.text) != std::string::npos)
+        text_seen = true;
     }
   });
   bool reaped = false;
-  if (kill.lines >= 0) {
+  if (kill.lines >= 0 || !kill.text.empty()) {
     Clock::time_point seen{};  // when the line count reached kill.lines
     const auto delay = std::chrono::microseconds(static_cast<std::int64_t>(kill.delay * 1e6));
     while (true) {
@@ -114,7 +119,8 @@ Job run_job(const std::vector<std::string>& args, KillPoint kill = {},
         break;
       }
       const Clock::time_point now = Clock::now();
-      if (seen == Clock::time_point{} && lines >= kill.lines)
+      if (seen == Clock::time_point{} &&
+          (kill.text.empty() ? lines >= kill.lines : text_seen.load()))
         seen = now;
       if (seen != Clock::time_point{} && now >= seen + delay) {
         ::kill(pid, SIGKILL);
@@ -311,9 +317,9 @@ class FaultInjection : public ::testing::Test {
     int kills = 0;
     for (int i = 0; i < 3; ++i) {
       const double t = (i == 0 ? first(rng) : moment(rng)) * whole.seconds;
-      KillPoint at{0, t};
+      KillPoint at{0, t, ""};
       for (std::size_t k = 0; k < whole.line_times.size() && whole.line_times[k] <= t; ++k)
-        at = {static_cast<int>(k) + 1, t - whole.line_times[k]};
+        at = {static_cast<int>(k) + 1, t - whole.line_times[k], ""};
       const Job j = run_job(args, at);
       std::printf("[ fault    ] seed %llu: %s killed %.3f s after line %d (%.2f s of %.2f): %s\n",
                   static_cast<unsigned long long>(fault_seed()), args[0].c_str(), at.delay,
@@ -476,40 +482,9 @@ TEST_F(FaultInjection, ADamagedCheckpointOrWeightsFileIsFoundByItsSeal) {
   const fs::path out = dir_ / "damaged_run";
   const auto ref = tree_of(dir_ / "ref_run");
   // kill as soon as AE2's checkpoint of joint 4 at step 100 is written
-  std::string seen;
-  {
-    Job first;
-    const auto args = train_args(out);
-    // the moment is the checkpoint's line: poll the output for it
-    int fds[2];
-    ASSERT_EQ(::pipe(fds), 0);
-    const pid_t pid = ::fork();
-    if (pid == 0) {
-      ::dup2(fds[1], 1);
-      ::dup2(fds[1], 2);
-      ::close(fds[0]);
-      std::vector<char*> argv;
-      for (const std::string& a : args)
-        argv.push_back(const_cast<char*>(a.c_str()));
-      argv.push_back(nullptr);
-      ::execv(args[0].c_str(), argv.data());
-      ::_exit(127);
-    }
-    ::close(fds[1]);
-    char c;
-    bool sent = false;
-    while (::read(fds[0], &c, 1) == 1) {
-      seen += c;
-      if (c == '\n' && !sent &&
-          seen.find("checkpoint ae2 panda_joint4 step 100") != std::string::npos) {
-        ::kill(pid, SIGKILL);
-        sent = true;
-      }
-    }
-    ::close(fds[0]);
-    ::waitpid(pid, &first.status, 0);
-    ASSERT_TRUE(sent) << seen;
-  }
+  const Job first =
+      run_job(train_args(out), KillPoint{-1, 0, "checkpoint ae2 panda_joint4 step 100"});
+  ASSERT_TRUE(first.killed()) << tail(first.text);
   const fs::path checkpoint = out / "ae2.panda_joint4.checkpoint.safetensors";
   ASSERT_TRUE(fs::exists(checkpoint));
   flip_byte(checkpoint, 10);
