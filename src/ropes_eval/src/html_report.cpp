@@ -305,10 +305,6 @@ std::uint8_t to_byte(float v) {
   return static_cast<std::uint8_t>(std::lround(std::clamp(v, 0.0f, 1.0f) * 255.0f));
 }
 
-nlohmann::json read_json(const fs::path& p) {
-  return detail::read_json_if_there(p);
-}
-
 }  // namespace
 
 ReportImages collect_report_images(const fs::path& run_dir, const fs::path& data_dir,
@@ -523,7 +519,7 @@ std::string html_report(const EvaluationReport& report, const fs::path& run_dir,
   h << "</div>\n";
 
   // sparsity matrices
-  const nlohmann::json run = read_json(run_dir / "run.json");
+  const nlohmann::json run = detail::read_json_if_there(run_dir / "run.json");
   if (run.is_object() && run.contains("sparsity_matrix") && run["sparsity_matrix"].is_object()) {
     h << "<h2>Score sparsity: |score-difference Jacobian| per joint (rows) and latent "
          "(columns)</h2>\n<div class=\"row\">";
