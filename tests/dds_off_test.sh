@@ -35,9 +35,16 @@ if [ "$status_rc" != 2 ] || ! grep -q "built without Fast DDS" <<< "$status_out"
 fi
 # the packages' `slow` tests (whole presets trained end to end) touch no DDS and ran in the
 # main build; here every other test runs (colcon wants a space before the dash)
+# test-result runs after a failure too: with --verbose it prints the failed tests' output,
+# which the scratch directory takes with it when this script ends
+tests_rc=0
 colcon --log-base "$scratch/log" test --build-base "$scratch/build" --install-base "$scratch/install" \
-  --ctest-args " -LE" slow
+  --ctest-args " -LE" slow || tests_rc=$?
 colcon --log-base "$scratch/log" test-result --test-result-base "$scratch/build" --verbose
+if [ "$tests_rc" != 0 ]; then
+  echo "FAIL: colcon test exited $tests_rc in the build without DDS" >&2
+  exit 1
+fi
 # a consumer asking for ropes_msgs gets the reason
 mkdir -p "$scratch/consumer"
 cat > "$scratch/consumer/CMakeLists.txt" <<'CMAKE'
