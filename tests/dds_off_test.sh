@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds and tests the whole workspace with -DROPES_WITH_DDS=OFF in a scratch build and
 # install space: every package but ropes_msgs must build and pass its tests (all but those
-# labelled slow, which touch no DDS and run in the main build), and ropes_msgs must
+# labelled slow, heavy or fault, which touch no DDS and run in the main build), and ropes_msgs must
 # install a config file that tells a consumer it was built without Fast DDS.
 # Usage: dds_off_test.sh WORKSPACE
 set -euo pipefail
@@ -33,13 +33,14 @@ if [ "$status_rc" != 2 ] || ! grep -q "built without Fast DDS" <<< "$status_out"
   echo "FAIL: --status / --live without DDS: rc $status_rc '$status_out', rc $live_rc '$live_out'" >&2
   exit 1
 fi
-# the packages' `slow` tests (whole presets trained end to end) touch no DDS and ran in the
-# main build; here every other test runs (colcon wants a space before the dash)
+# the packages' `slow`, `heavy` and `fault` tests (presets trained, the tools killed) touch
+# no DDS and ran in the main build; here every other test runs (colcon wants a space before
+# the dash)
 # test-result runs after a failure too: with --verbose it prints the failed tests' output,
 # which the scratch directory takes with it when this script ends
 tests_rc=0
 colcon --log-base "$scratch/log" test --build-base "$scratch/build" --install-base "$scratch/install" \
-  --ctest-args " -LE" slow || tests_rc=$?
+  --ctest-args " -LE" "slow|heavy|fault" || tests_rc=$?
 colcon --log-base "$scratch/log" test-result --test-result-base "$scratch/build" --verbose
 if [ "$tests_rc" != 0 ]; then
   echo "FAIL: colcon test exited $tests_rc in the build without DDS" >&2
