@@ -712,19 +712,48 @@ TEST_F(Pipeline, RopesRunResumesInsideItsStagesAndEndsWithTheTable) {
 // weights depend on the CPU; twice there, the same digits): 0.975 / 0.924 / 0.763. The floors
 // are each joint's lowest measured value; the target of 0.90 is met on joints 2 and 4
 // and not on joint 6, whose floor is therefore below it. Prints the measured values.
+// Under AddressSanitizer the preset trains far slower (AE1 at 5.6 images/s: over 3 hours
+// for its 2,000 steps alone), and clang's -O1 float arithmetic is not the Release build's
+// that the floors were measured on. So a sanitizer build runs the same job at the same
+// sizes (dataset, networks, evaluation protocol) with every stage cut short, and checks
+// that it ends with a complete table; the floors are checked in the Release build.
+#if defined(__SANITIZE_ADDRESS__)
+#define ROPES_PIPELINE_SANITIZED 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define ROPES_PIPELINE_SANITIZED 1
+#endif
+#endif
+
 TEST_F(Pipeline, SmallPresetOneCameraReachesTheMeasuredMcc) {
   const fs::path out = dir_ / "small_1c";
-  const Output r = run(kRun + " 1c-small --out " + out.string() +
+  std::string config = "1c-small";
+#if defined(ROPES_PIPELINE_SANITIZED)
+  nlohmann::json cut = json_of(ROPES_CRL_SMALL_CONFIG);
+  ASSERT_EQ(cut["name"], "1c-small");
+  cut["name"] = "1c-small-cut";
+  cut["ae1"]["steps"] = 60;
+  cut["ldr"]["max_epochs"] = 1;
+  cut["ae2"]["steps"] = 200;
+  config = (dir_ / "1c-small-cut.json").string();
+  std::ofstream(config) << cut.dump(2);
+#endif
+  const Output r = run(kRun + " " + config + " --out " + out.string() +
                        " --threads 2 --progress lines --suite id --supervised none");
   ASSERT_EQ(r.rc, 0) << r.text.substr(r.text.size() > 4000 ? r.text.size() - 4000 : 0);
   const nlohmann::json results = json_of(out / "report" / "results.json");
   const nlohmann::json& ropes = results["suites"][0]["results"]["methods"]["ropes"];
   const std::vector<std::string> joints = {"panda_joint2", "panda_joint4", "panda_joint6"};
   const double floors[] = {0.959, 0.924, 0.753};
+  ASSERT_EQ(ropes["mcc"].size(), joints.size()) << ropes.dump();
   for (std::size_t k = 0; k < joints.size(); ++k) {
     const double mcc = ropes["mcc"][k].get<double>();
     std::printf("small 1C seed 0: %s MCC %.3f ± %.3f (floor %.3f), MSE %.3f\n", joints[k].c_str(),
                 mcc, ropes["mcc_std"][k].get<double>(), floors[k], ropes["mse"][k].get<double>());
+#if defined(ROPES_PIPELINE_SANITIZED)
+    EXPECT_TRUE(std::isfinite(mcc) && std::fabs(mcc) <= 1.0) << joints[k] << ": " << mcc;
+#else
     EXPECT_GE(mcc, floors[k]) << joints[k];
+#endif
   }
 }
