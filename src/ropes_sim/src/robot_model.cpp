@@ -7,6 +7,7 @@
 #include <fstream>
 #include <mutex>
 #include <queue>
+#include <set>
 #include <sstream>
 
 namespace ropes::sim {
@@ -80,7 +81,20 @@ urdf::ModelInterfaceSharedPtr parse_urdf(const std::string& xml, std::string* me
   urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(xml);
   console_bridge::restorePreviousOutputHandler();
   *messages = collect.messages;
-  return model;
+  if (!model)
+    return model;
+  // urdfdom holds each link's child links by shared_ptr, so joints that form a loop (a link
+  // its own child, or two links each other's) build a cycle that outlives the model: a
+  // leak found by fuzz/urdf (fuzz/regressions/urdf/joint_loop_leak.txt). The pointer
+  // returned here cuts every link's children when its last owner lets go.
+  urdf::ModelInterface* raw = model.get();
+  return urdf::ModelInterfaceSharedPtr(raw, [model](urdf::ModelInterface* m) mutable {
+    for (auto& [name, link] : m->links_) {
+      link->child_links.clear();
+      link->child_joints.clear();
+    }
+    model.reset();
+  });
 }
 
 // The offset of the first byte of `text` that is not well-formed UTF-8 (a NUL counts as
@@ -158,12 +172,23 @@ RobotModel RobotModel::parse(const std::string& xml, const std::string& source,
   model.name_ = urdf->getName();
   model.base_dir_ = base_dir;
   model.source_ = source;
-  // links breadth first from the root, so every parent comes before its children
+  // links breadth first from the root, so every parent comes before its children; a link
+  // reached twice means joints that form a loop, or a link with two parent joints (urdfdom
+  // accepts both), which would never end
   std::queue<std::pair<urdf::LinkConstSharedPtr, int>> queue;  // link, its parent joint
+  std::set<std::string> reached;
   queue.push({root, -1});
   while (!queue.empty()) {
     const auto [link, parent_joint] = queue.front();
     queue.pop();
+    if (!link || !reached.insert(link->name).second) {
+      const std::string joint =
+          parent_joint >= 0 ? model.joints_[static_cast<std::size_t>(parent_joint)].name : "";
+      throw ModelError(source + ": joint '" + joint + "' leads to link '" +
+                       (link ? link->name : std::string("?")) +
+                       "' a second time; the joints must form a tree (no loops, one parent "
+                       "joint per link)");
+    }
     const int index = static_cast<int>(model.links_.size());
     Link out{link->name, {}, parent_joint};
     for (const auto& v : link->visual_array)
@@ -210,6 +235,15 @@ RobotModel RobotModel::parse(const std::string& xml, const std::string& source,
       model.joints_.push_back(joint);
       queue.push({urdf->getLink(j->child_link_name), joint_index});
     }
+  }
+  if (model.links_.size() != urdf->links_.size()) {
+    std::string missing;
+    for (const auto& [name, link] : urdf->links_) {
+      if (reached.count(name) == 0)
+        missing += (missing.empty() ? "'" : ", '") + name + "'";
+    }
+    throw ModelError(source + ": link(s) " + missing + " not reached from the root link '" +
+                     root->name + "'; the joints must form one tree");
   }
   // joints in the order of their child links; movable ones are the coordinates
   std::vector<Joint> ordered;
