@@ -173,8 +173,8 @@ RobotModel RobotModel::parse(const std::string& xml, const std::string& source,
   model.base_dir_ = base_dir;
   model.source_ = source;
   // links breadth first from the root, so every parent comes before its children; a link
-  // reached twice means joints that form a loop, or a link with two parent joints (urdfdom
-  // accepts both), which would never end
+  // reached twice means joints that are not a tree (urdfdom accepts loops and links with
+  // two parent joints), which would never end
   std::queue<std::pair<urdf::LinkConstSharedPtr, int>> queue;  // link, its parent joint
   std::set<std::string> reached;
   queue.push({root, -1});
