@@ -103,7 +103,11 @@ TEST_P(Streaming, EveryFrameGetsExactlyOneEstimateEqualToTheOfflineEstimator) {
   msgs::Subscriber<msgs::ImageFrame> frames(participant, msgs::kImageFrameTopic,
                                             msgs::Qos::reliable_all);
   msgs::Subscriber<msgs::PoseEstimate> estimates(participant);
-  Child node({ROPES_STREAM_EXE, "--run", run.string(), "--frame-qos", "reliable_all"},
+  // --wait-for-subscribers 1: the node reads no frame before its estimate writer has matched
+  // this reader. That this reader matched the writer says nothing of the other direction, and
+  // a volatile writer drops what it writes before (an estimate lost under ASan in CI).
+  Child node({ROPES_STREAM_EXE, "--run", run.string(), "--frame-qos", "reliable_all",
+              "--wait-for-subscribers", "1"},
              kDir / ("node-" + cameras + ".log"));
   ASSERT_TRUE(estimates.wait_for_matched(1, 30s)) << text_of(kDir / ("node-" + cameras + ".log"));
   const int n = 60;
@@ -206,7 +210,11 @@ TEST(StreamingNode, BadFramesAreRefusedCountedAndLoggedWithoutStoppingTheNode) {
                                         msgs::Qos::reliable_all);
   msgs::Subscriber<msgs::PoseEstimate> estimates(participant);
   const fs::path log = kDir / "node-bad.log";
-  Child node({ROPES_STREAM_EXE, "--run", run.string(), "--frame-qos", "reliable_all"}, log);
+  // the node opens its frame reader once its estimate writer has matched `estimates` (see
+  // Streaming above), so a frame writer matched to that reader loses no estimate
+  Child node({ROPES_STREAM_EXE, "--run", run.string(), "--frame-qos", "reliable_all",
+              "--wait-for-subscribers", "1"},
+             log);
   ASSERT_TRUE(pub.wait_for_matched(1, 30s)) << text_of(log);
   ASSERT_TRUE(estimates.wait_for_matched(1, 30s));
   std::vector<msgs::ImageFrame> sent = {
