@@ -133,7 +133,7 @@ CameraRig CameraRig::two_cameras() {
   CameraRig rig;
   rig.name = "two_cameras";
   const Eigen::Vector3d target(-0.55, 0.0, 0.45);
-  rig.cameras = {framed("yaw45", 45.0, target, 78.0), framed("yaw135", 135.0, target, 78.0)};
+  rig.cameras = {framed("yaw45", 45.0, target, 80.0), framed("yaw135", 135.0, target, 80.0)};
   return rig;
 }
 

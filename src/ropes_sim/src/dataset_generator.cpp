@@ -171,6 +171,26 @@ std::string first_difference(const Json& ours, const Json& theirs, const std::st
   return path + ": " + short_dump(ours) + " now, " + short_dump(theirs) + " there";
 }
 
+// a dataset (or its unfinished start) of a sim_dataset_version before 3, which read the
+// paper's TN(mean, x) as a standard deviation: refused with why and what to do, so that it is
+// neither resumed nor mistaken for a mere change of config
+void refuse_old_reading(const fs::path& dir, const fs::path& file, const Json& meta) {
+  if (!meta.is_object() || !meta.contains("sim_dataset_version"))
+    return;
+  const Json& v = meta["sim_dataset_version"];
+  if (v.is_number_integer() && v.get<std::int64_t>() >= kFirstVarianceReadingVersion)
+    return;
+  const std::string version =
+      v.is_number_integer() ? std::to_string(v.get<std::int64_t>()) : std::string(v.type_name());
+  throw std::runtime_error(
+      file.string() + ": sim_dataset_version " + version +
+      ", made when ropes-generate read the paper's TN(mean, x) as a standard deviation; the "
+      "paper's x is a variance (sim_dataset_version " +
+      std::to_string(kFirstVarianceReadingVersion) +
+      " on), so it is not the paper's dataset: remove " + dir.string() +
+      " and generate it again, or choose another --out");
+}
+
 // checks that `dir` is empty, new, or holds this dataset; returns true when it is complete
 bool prepare_directory(const fs::path& dir, const std::string& metadata) {
   const Json ours = Json::parse(metadata);
@@ -180,6 +200,7 @@ bool prepare_directory(const fs::path& dir, const std::string& metadata) {
   if (fs::exists(manifest)) {
     const Json theirs = read_json(manifest);
     const Json& meta = theirs.contains("metadata") ? theirs["metadata"] : Json();
+    refuse_old_reading(dir, manifest, meta);
     if (meta != ours)
       throw std::runtime_error(dir.string() + " holds a different dataset (manifest.json: " +
                                first_difference(ours, meta) +
@@ -188,6 +209,7 @@ bool prepare_directory(const fs::path& dir, const std::string& metadata) {
   }
   if (fs::exists(generation)) {
     const Json theirs = read_json(generation);
+    refuse_old_reading(dir, generation, theirs);
     if (theirs != ours)
       throw std::runtime_error(
           dir.string() + " holds an unfinished different dataset (" + std::string(kGenerationFile) +

@@ -2,8 +2,10 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <fstream>
 #include <set>
+#include <sstream>
 
 #include "json_config.hpp"
 
@@ -23,17 +25,38 @@ double number(const Json& v, const std::string& file, const std::string& field) 
   return v.get<double>();
 }
 
+// {mean, variance | std, lower, upper}: the paper's TN_[a,b](mu, sigma^2) names a variance
+// (paper line 472), so a distribution file states it as `variance`; `std` is read for users
+// who think in standard deviations. Exactly one of the two.
 TruncatedNormal truncated_normal(const Json& v, const std::string& file, const std::string& field) {
   if (!v.is_object())
-    fail(file, field + " is not an object {mean, std, lower, upper}");
-  for (const char* key : {"mean", "std", "lower", "upper"}) {
+    fail(file, field + " is not an object {mean, variance (or std), lower, upper}");
+  for (const char* key : {"mean", "lower", "upper"}) {
     if (!v.contains(key))
       fail(file, field + " lacks '" + key + "'");
   }
+  const bool has_variance = v.contains("variance"), has_std = v.contains("std");
+  if (has_variance == has_std)
+    fail(file, field +
+                   (has_variance ? " gives both 'variance' and 'std'"
+                                 : " gives neither 'variance' nor 'std'") +
+                   "; expected exactly one (the paper's TN(mean, x) takes the variance x)");
+  double sigma = 0;
+  if (has_variance) {
+    const double variance = number(v["variance"], file, field + ".variance");
+    if (!(variance > 0) || !std::isfinite(variance)) {
+      std::ostringstream text;
+      text << variance;
+      fail(file, field + ".variance is " + text.str() + "; expected a finite number > 0");
+    }
+    sigma = std::sqrt(variance);
+  } else {
+    sigma = number(v["std"], file, field + ".std");
+  }
   try {
-    return TruncatedNormal(
-        number(v["mean"], file, field + ".mean"), number(v["std"], file, field + ".std"),
-        number(v["lower"], file, field + ".lower"), number(v["upper"], file, field + ".upper"));
+    return TruncatedNormal(number(v["mean"], file, field + ".mean"), sigma,
+                           number(v["lower"], file, field + ".lower"),
+                           number(v["upper"], file, field + ".upper"));
   } catch (const std::invalid_argument& e) {
     fail(file, field + ": " + e.what());
   }

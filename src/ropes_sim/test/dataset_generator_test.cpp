@@ -97,7 +97,7 @@ TEST(DatasetGenerator, RowsHoldWhatTheSamplerAndRendererGive) {
   EXPECT_EQ(meta["regime_names"].size(), 13u);
   EXPECT_EQ(meta["joint_names"][0], "panda_joint1");
   // every regime parsed: the joint it intervenes on and which intervention
-  EXPECT_EQ(meta["sim_dataset_version"], 2);
+  EXPECT_EQ(meta["sim_dataset_version"], 3);
   ASSERT_EQ(meta["regimes"].size(), 13u);
   EXPECT_EQ(meta["regimes"][0], nlohmann::json::parse(R"({"name": "observational", "joint": null,
                                    "joint_index": null, "intervention": null})"));
@@ -153,6 +153,37 @@ TEST(DatasetGenerator, ADatasetWithoutRegimeMetadataStillOpens) {
         << e.what();
   }
   reader.verify();  // the shards are untouched
+}
+
+// a dataset or an unfinished one of sim_dataset_version 2, which read the paper's TN(mean, x)
+// as a standard deviation: generate_dataset neither reuses nor resumes it, says why and what
+// to do, and leaves it as it was
+TEST(DatasetGenerator, RefusesADatasetOfTheOldStandardDeviationReading) {
+  const fs::path dir = temp_dir("old_reading");
+  const auto config = DatasetConfig::load(write_config(dir));
+  generate_dataset(config, options(dir / "d", 1));
+  generate_dataset(config, options(dir / "u", 1, 1, 2));  // unfinished: generation.json only
+  for (const fs::path& file : {dir / "d" / "manifest.json", dir / "u" / kGenerationFile}) {
+    nlohmann::json m = nlohmann::json::parse(std::ifstream(file));
+    nlohmann::json& meta = file.filename() == "manifest.json" ? m["metadata"] : m;
+    meta["sim_dataset_version"] = 2;
+    std::ofstream(file) << m.dump(2) << "\n";
+    const fs::path out = file.parent_path();
+    const auto before = files(out);
+    try {
+      generate_dataset(config, options(out, 1));
+      ADD_FAILURE() << file << ": a version 2 dataset was accepted";
+    } catch (const std::runtime_error& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find(file.string() + ": sim_dataset_version 2, made when ropes-generate "
+                                          "read the paper's TN(mean, x) as a standard deviation"),
+                std::string::npos)
+          << what;
+      EXPECT_NE(what.find("remove " + out.string() + " and generate it again"), std::string::npos)
+          << what;
+    }
+    EXPECT_EQ(files(out), before) << file;
+  }
 }
 
 TEST(DatasetGenerator, RefusesADirectoryHoldingSomethingElse) {

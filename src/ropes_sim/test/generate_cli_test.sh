@@ -23,8 +23,8 @@ m = json.load(open(f"{d}/manifest.json"))
 meta = m["metadata"]
 regimes, cams = (7, 1) if name == "1c" else (13, 2)
 assert meta["samples_per_anchor"] == regimes and len(meta["cameras"]) == cams, meta
-# every regime parsed in the metadata (sim_dataset_version 2)
-assert meta["sim_dataset_version"] == 2 and len(meta["regimes"]) == regimes, meta
+# every regime parsed in the metadata (since sim_dataset_version 2)
+assert meta["sim_dataset_version"] == 3 and len(meta["regimes"]) == regimes, meta
 assert meta["regimes"][0] == {"name": "observational", "joint": None, "joint_index": None,
                               "intervention": None}, meta["regimes"][0]
 rows = 0

@@ -33,7 +33,7 @@ TEST(InterventionSamplerGolden, ConfigsCarryThePapersNumbers) {
   EXPECT_EQ(one.regimes()[2].intervention, 2);
   const TruncatedNormal& j6 = one.interventions(joint(one, 6))[0];
   EXPECT_EQ(j6.mu(), 2.25);
-  EXPECT_EQ(j6.sigma(), 0.5);
+  EXPECT_EQ(j6.sigma(), std::sqrt(0.5));  // the table's 0.5 is a variance (paper line 472)
   EXPECT_EQ(j6.lower(), 0.0);
   EXPECT_EQ(j6.upper(), 3.0);
   EXPECT_EQ(one.observational(joint(one, 2))->sigma(), 1.0);
@@ -42,6 +42,7 @@ TEST(InterventionSamplerGolden, ConfigsCarryThePapersNumbers) {
   EXPECT_EQ(two.regime_names().size(), 13u);  // 1 + 2 x joints 1..6
   EXPECT_EQ(two.interventions(joint(two, 4))[1].mu(), -0.9);
   EXPECT_EQ(two.observational(joint(two, 1))->mu(), 1.2);
+  EXPECT_EQ(two.observational(joint(two, 2))->sigma(), std::sqrt(0.4));
 
   const auto ood = InterventionSampler::load(kDir / "2c_ood.json");
   EXPECT_EQ(ood.observational(joint(ood, 4))->mu(), 0.8);
@@ -52,6 +53,8 @@ TEST(InterventionSamplerGolden, ConfigsCarryThePapersNumbers) {
   EXPECT_EQ(causal.sem_weight(joint(causal, 3), joint(causal, 2)), 0.88);
   EXPECT_EQ(causal.sem_weight(joint(causal, 6), joint(causal, 3)), 0.37);
   EXPECT_FALSE(causal.observational(joint(causal, 3)).has_value());  // not a root
+  ASSERT_TRUE(causal.sem_noise().has_value());
+  EXPECT_EQ(causal.sem_noise()->sigma(), std::sqrt(0.1));  // TN_[0,1](0, 0.1), a variance
 }
 
 // The first two samples (observational, first intervention) of anchor 0 under seed 0, per
@@ -59,7 +62,10 @@ TEST(InterventionSamplerGolden, ConfigsCarryThePapersNumbers) {
 // closed-form moments and numeric integration in truncated_normal_test.cpp). Independent
 // checks here: held joints equal the config, the intervention changes only its joint (and,
 // in the SEM, joint 6 = its parents' weighted sum + the anchor's noise, recomputed here).
-// Regenerate by printing sample_anchor(0, 0)[0..1] with %.17g.
+// Regenerate by printing sample_anchor(0, 0)[0..1] with %.17g. Witness of the variance
+// reading (sigma = sqrt(x)): test/witness_variance_reading.py checks with scipy that each
+// independent pin and its sim_dataset_version 2 value (x read as sigma) are the quantiles of
+// one and the same uniform.
 TEST(InterventionSamplerGolden, FirstSamplesOfEachConfigForSeedZero) {
   struct Case {
     const char* name;
@@ -68,23 +74,24 @@ TEST(InterventionSamplerGolden, FirstSamplesOfEachConfigForSeedZero) {
   const Case cases[] = {
       {"1c_independent",
        {{0, -0.22102799491644551, 0, 0.5365714433627139, 0, 2.8354960536329941, 0.79},
-        {0, -0.46689250736474458, 0, 0.5365714433627139, 0, 2.8354960536329941, 0.79}}},
+        {0, -0.30024801591874711, 0, 0.5365714433627139, 0, 2.8354960536329941, 0.79}}},
       {"2c_independent",
-       {{1.0985124158159418, 0.25202249401103466, 0.76539831983367768, 0.20277039318088136,
-         -0.82538460351720055, 1.0696831176045045, 0.79},
-        {2.3122365165133223, 0.25202249401103466, 0.76539831983367768, 0.20277039318088136,
-         -0.82538460351720055, 1.0696831176045045, 0.79}}},
+       {{1.0650618945085879, 0.39052542784303274, 1.1369010957542958, 0.31449487516728047,
+         -1.2090579409417079, 0.83714466671914978, 0.79},
+        {2.4121950060356538, 0.39052542784303274, 1.1369010957542958, 0.31449487516728047,
+         -1.2090579409417079, 0.83714466671914978, 0.79}}},
       {"2c_ood",
-       {{1.0985124158159418, 0.25202249401103466, 0.76539831983367768, 0.97170360656730559,
-         -0.82538460351720055, 0.20670317556502599, 0.79},
-        {2.3122365165133223, 0.25202249401103466, 0.76539831983367768, 0.97170360656730559,
-         -0.82538460351720055, 0.20670317556502599, 0.79}}},
+       {{1.0650618945085879, 0.39052542784303274, 1.1369010957542958, 0.96162925598204008,
+         -1.2090579409417079, 0.21352861804018808, 0.79},
+        {2.4121950060356538, 0.39052542784303274, 1.1369010957542958, 0.96162925598204008,
+         -1.2090579409417079, 0.21352861804018808, 0.79}}},
       {"2c_causal",
-       {{1.5048098116382893, 0.42283823629718625, 0.37453551303550997, 0.33661643442148209,
-         0.18237127520703331, 0.84237578474158847, 0.79},
-        {2.6097076262176797, 0.42283823629718625, 0.37453551303550997, 0.33661643442148209,
-         0.18237127520703331, 1.1075512602406421, 0.79}}},
+       {{1.7753588878268367, 1.0037721081031095, 0.89101659106154529, 0.54932838103939408,
+         0.49989482372384519, 1.7212974969726795, 0.79},
+        {2.7708564870092913, 1.0037721081031095, 0.89101659106154529, 0.54932838103939408,
+         0.49989482372384519, 1.9602169207764686, 0.79}}},
   };
+
   for (const Case& c : cases) {
     const auto s = InterventionSampler::load(kDir / (std::string(c.name) + ".json"));
     const auto got = s.sample_anchor(0, 0);
@@ -139,6 +146,26 @@ TEST(InterventionSampler, TheCausalModelRecomputesDescendantsWithTheSameNoise) {
     EXPECT_EQ(do4[static_cast<std::size_t>(j)], base[static_cast<std::size_t>(j)]);
 }
 
+// The paper's TN_[-1.5,1.5](0, 0.4) read as a variance, as the paper defines it: the angles
+// of the 2C observational joints have variance 0.35372 (scipy.stats.truncnorm(-1.5/s, 1.5/s,
+// scale=s).var() with s = sqrt(0.4), Debian's python3-scipy 1.10), which is what the paper's
+// own 2C row implies (MSE / (1 - MCC^2) = 0.35-0.37). Read as a standard deviation they would
+// have variance 0.15958.
+TEST(InterventionSampler, TwoCameraAnglesHaveThePapersVariance) {
+  const auto s = InterventionSampler::load(kDir / "2c_independent.json");
+  const int n = 20000;
+  double sum = 0, sum2 = 0;
+  for (int a = 0; a < n; ++a) {
+    const double x = s.sample_anchor(2, static_cast<std::uint64_t>(a))[0][1];  // joint 2
+    sum += x;
+    sum2 += x * x;
+  }
+  const double mean = sum / n, variance = sum2 / n - mean * mean;
+  EXPECT_NEAR(s.observational(joint(s, 2))->variance(), 0.3537228480016075, 1e-9);
+  // the sample variance's standard error is about variance * sqrt(2 / n) = 0.0035
+  EXPECT_NEAR(variance, 0.3537228480016075, 0.015);
+}
+
 TEST(InterventionSampler, ObservationalDrawsHaveTheTableMoments) {
   const auto s = InterventionSampler::load(kDir / "2c_independent.json");
   const TruncatedNormal& j6 = *s.observational(joint(s, 6));
@@ -186,6 +213,36 @@ TEST(InterventionSampler, RefusesBadConfigsNamingTheFieldAndValue) {
           head +
           R"("observational": {"a": {"mean": 0, "std": -2, "lower": -1, "upper": 1}}, "interventions": {}})")
           .find("sigma=-2"),
+      std::string::npos);
+  // the spread: `variance` (the paper's parameter) or `std`, exactly one
+  EXPECT_EQ(
+      load_error(
+          head +
+          R"("observational": {"a": {"mean": 0, "variance": 1, "lower": -1, "upper": 1}}, "interventions": {}})"),
+      "");
+  EXPECT_NE(
+      load_error(
+          head +
+          R"("observational": {"a": {"mean": 0, "lower": -1, "upper": 1}}, "interventions": {}})")
+          .find("observational.a gives neither 'variance' nor 'std'; expected exactly one"),
+      std::string::npos);
+  EXPECT_NE(
+      load_error(
+          head +
+          R"("observational": {"a": {"mean": 0, "variance": 1, "std": 1, "lower": -1, "upper": 1}}, "interventions": {}})")
+          .find("observational.a gives both 'variance' and 'std'; expected exactly one"),
+      std::string::npos);
+  EXPECT_NE(
+      load_error(
+          head +
+          R"("observational": {"a": {"mean": 0, "variance": -0.5, "lower": -1, "upper": 1}}, "interventions": {}})")
+          .find("observational.a.variance is -0.5; expected a finite number > 0"),
+      std::string::npos);
+  EXPECT_NE(
+      load_error(
+          head +
+          R"("observational": {"a": {"mean": 0, "variance": "big", "lower": -1, "upper": 1}}, "interventions": {}})")
+          .find("observational.a.variance is string; expected a number"),
       std::string::npos);
   EXPECT_NE(load_error(head + R"("observational": {}, "interventions": {}})")
                 .find("joint 'a' is neither held, observational nor a child in the sem"),

@@ -38,8 +38,16 @@ namespace ropes::sim {
 /// DIR/generation.json holds the metadata from the first run, so that a rerun can tell
 /// its own unfinished dataset from a different one.
 inline constexpr const char* kGenerationFile = "generation.json";
-/// 2: the metadata's "regimes" (version 1 datasets lack it; they still open).
-inline constexpr int kSimDatasetVersion = 2;
+/// 2: the metadata's "regimes". 3: the distribution files' TN(mean, x) is read as the paper
+/// defines it, x a variance (`variance`, or `std` for a standard deviation); up to 2 the
+/// same numbers were standard deviations, so those datasets are not the paper's.
+/// generate_dataset refuses to resume or reuse a directory holding one (naming the version
+/// and what to do), and ropes-train and ropes-eval refuse to read one
+/// (ropes_crl/dataset_version.hpp).
+inline constexpr int kSimDatasetVersion = 3;
+/// The first sim_dataset_version that read TN(mean, x) with x a variance: generate_dataset
+/// refuses a directory holding an older one.
+inline constexpr int kFirstVarianceReadingVersion = 3;
 
 struct GenerateOptions {
   std::filesystem::path out;

@@ -10,8 +10,10 @@
 /// each naming its table in "source"):
 ///   joints         the robot's coordinates in order, e.g. panda_joint1 .. panda_joint7
 ///   held           joints fixed at a value in every sample
-///   observational  joint -> {mean, std, lower, upper}: TN_[lower, upper](mean, std), std a
-///                  standard deviation (DESIGN.md)
+///   observational  joint -> {mean, variance, lower, upper}: the paper's
+///                  TN_[lower, upper](mean, variance), variance as the paper defines it (its
+///                  line 472; DESIGN.md); {mean, std, lower, upper} gives a standard
+///                  deviation instead. Exactly one of variance and std.
 ///   interventions  joint -> [two TN distributions]: the joints intervened on, in order
 ///   sem            optional: {noise: TN, parents: joint -> {parent: weight}}; a joint
 ///                  without parents that has an observational TN is a root: root = TN draw
@@ -37,8 +39,8 @@ class ConfigError : public std::runtime_error {
 class InterventionSampler {
  public:
   /// Reads and checks a config file: every joint named must be in "joints", every TN valid
-  /// (lower < upper, std > 0), each intervened joint has exactly two distributions, and
-  /// every joint is held, observational or (with a sem) a child in the sem.
+  /// (lower < upper, variance or std > 0, exactly one of them), each intervened joint has exactly
+  /// two distributions, and every joint is held, observational or (with a sem) a child in the sem.
   static InterventionSampler load(const std::filesystem::path& path);
 
   const std::string& name() const { return name_; }
@@ -66,6 +68,8 @@ class InterventionSampler {
   const std::vector<TruncatedNormal>& interventions(int j) const;
   /// The sem weight of `parent` in `child` (0 when none).
   double sem_weight(int child, int parent) const;
+  /// The sem's noise distribution (nullopt without a sem).
+  const std::optional<TruncatedNormal>& sem_noise() const { return sem_noise_; }
 
  private:
   struct JointSpec {

@@ -1,6 +1,6 @@
 #pragma once
 /// @file truncated_normal.hpp
-/// TruncatedNormal: the TN_[a,b](mu, sigma) distribution of the ROPES paper's sampling tables.
+/// TruncatedNormal: the TN_[a,b](mu, sigma^2) distribution of the ROPES paper's sampling tables.
 
 #include <ropes_nn/philox.hpp>
 
@@ -8,9 +8,10 @@ namespace ropes::sim {
 
 /// The normal distribution N(mu, sigma^2) conditioned on the closed interval [lower, upper].
 ///
-/// `sigma` is a standard deviation. The paper writes TN_[a,b](mu, x) and calls x a variance
-/// in one place; the workspace reads it as a standard deviation (DESIGN.md, "Decisions"),
-/// and config files spell it `std:`.
+/// `sigma` is a standard deviation. The paper writes TN_[a,b](mu, sigma^2) and defines the
+/// second parameter as the variance (its line 472), so distribution files state the paper's
+/// number as `variance` and InterventionSampler::load passes sigma = sqrt(variance); a file
+/// may give `std` instead (DESIGN.md, "Decisions").
 ///
 /// Sampling is by inversion: one uniform_double() per sample, mapped through the quantile
 /// function, so a stream's position after n samples is always 2n words. Works far into the
