@@ -58,8 +58,8 @@ void write_dataset(const fs::path& dir) {
   nn::write_dataset_shard(dir, 0, columns, {images, angles, regime, anchor});
   // what the trainer reads: the regimes by joint, the interventions' distributions (for the
   // LDR's Bayes accuracy), the joint names
-  const nlohmann::json tn1 = {{"mean", -0.75}, {"std", 0.5}, {"lower", -1.5}, {"upper", 1.5}};
-  const nlohmann::json tn2 = {{"mean", 0.75}, {"std", 0.5}, {"lower", -1.5}, {"upper", 1.5}};
+  const nlohmann::json tn1 = {{"mean", -0.75}, {"variance", 0.5}, {"lower", -1.5}, {"upper", 1.5}};
+  const nlohmann::json tn2 = {{"mean", 0.75}, {"variance", 0.5}, {"lower", -1.5}, {"upper", 1.5}};
   const nlohmann::json metadata = {
       {"cameras", {"cam0"}},
       {"joint_names", {"bar"}},

@@ -24,7 +24,24 @@ double normal_cdf(double x) {
 TruncatedNormal TruncatedNormal::from_json(const nlohmann::json& j, const std::string& where) {
   TruncatedNormal d;
   d.mean = detail::get_double(j, where, "mean");
-  d.std = detail::get_double(j, where, "std");
+  // the paper's TN(mean, x) takes the variance x (ropes_sim's distribution files say
+  // `variance`); `std` is read too, never both
+  const bool has_variance = j.is_object() && j.contains("variance");
+  const bool has_std = j.is_object() && j.contains("std");
+  if (has_variance == has_std)
+    throw std::invalid_argument(
+        where +
+        (has_variance ? ": gives both variance and std" : ": gives neither variance nor std") +
+        "; expected exactly one");
+  if (has_variance) {
+    const double variance = detail::get_double(j, where, "variance");
+    if (!(variance > 0) || !std::isfinite(variance))
+      throw std::invalid_argument(where + ".variance: expected a finite number > 0, got " +
+                                  std::to_string(variance));
+    d.std = std::sqrt(variance);
+  } else {
+    d.std = detail::get_double(j, where, "std");
+  }
   d.lower = detail::get_double(j, where, "lower");
   d.upper = detail::get_double(j, where, "upper");
   try {

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "ropes_crl/bayes_accuracy.hpp"
+#include "ropes_crl/dataset_version.hpp"
 #include "ropes_crl/sparsity_objective.hpp"
 #include "run_files.hpp"
 
@@ -50,6 +51,7 @@ TrainingData TrainingData::open(const ExperimentConfig& config, const fs::path& 
   const fs::path manifest = dir / "manifest.json";
   d.dataset_id = read_json_file(manifest).value("dataset", "");
   d.rows = d.reader.rows();
+  require_current_sim_dataset(d.reader);  // never train on the old reading of TN(mean, x)
   d.reader.verify();  // a shard damaged after generation is refused, never trained on
   expect_column(d.reader, manifest, "images", nn::DType::kU8);
   expect_column(d.reader, manifest, "regime", nn::DType::kI32);
@@ -68,8 +70,8 @@ TrainingData TrainingData::open(const ExperimentConfig& config, const fs::path& 
                                 "' expects " + str(want));
   }
   // the regimes of each intervened joint
-  const nlohmann::json& regimes = d.reader.metadata_at(
-      "/regimes", "regenerate the dataset with this ropes-generate (sim_dataset_version 2)");
+  const nlohmann::json& regimes =
+      d.reader.metadata_at("/regimes", "regenerate the dataset with this ropes-generate");
   d.regime = read_scalar_column<std::int32_t>(d.reader, "regime");
   d.anchor = read_scalar_column<std::int64_t>(d.reader, "anchor");
   const nlohmann::json& interventions =

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <stdexcept>
 
 using ropes::crl::bayes_accuracy;
@@ -15,13 +16,44 @@ TEST(BayesAccuracy, MatchesScipyQuadrature) {
     double want;
   };
   const Case cases[] = {
-      {{-0.75, 0.5, -1.5, 1.5}, {0.75, 0.5, -1.5, 1.5}, 0.9284134566},  // 1C joints 2, 4
-      {{2.25, 0.5, 0.0, 3.0}, {0.75, 0.5, 0.0, 3.0}, 0.9284134566},     // 1C joint 6
-      {{0.0, 1.0, -2.0, 2.0}, {0.5, 0.3, -1.0, 3.0}, 0.7753986052},     // unequal supports
-      {{0.0, 1.0, -1.0, 1.0}, {0.0, 1.0, -1.0, 1.0}, 0.5},              // identical: chance
+      // 1C joints 2, 4 and 6: the paper's variance 0.5, then the old reading as std 0.5
+      {{-0.75, std::sqrt(0.5), -1.5, 1.5}, {0.75, std::sqrt(0.5), -1.5, 1.5}, 0.8319103700},
+      {{2.25, std::sqrt(0.5), 0.0, 3.0}, {0.75, std::sqrt(0.5), 0.0, 3.0}, 0.8319103700},
+      {{-0.75, 0.5, -1.5, 1.5}, {0.75, 0.5, -1.5, 1.5}, 0.9284134566},
+      {{2.25, 0.5, 0.0, 3.0}, {0.75, 0.5, 0.0, 3.0}, 0.9284134566},
+      // 2C joint 4, variance 0.4
+      {{0.9, std::sqrt(0.4), -1.5, 1.5}, {-0.9, std::sqrt(0.4), -1.5, 1.5}, 0.9067142150},
+      {{0.0, 1.0, -2.0, 2.0}, {0.5, 0.3, -1.0, 3.0}, 0.7753986052},  // unequal supports
+      {{0.0, 1.0, -1.0, 1.0}, {0.0, 1.0, -1.0, 1.0}, 0.5},           // identical: chance
   };
   for (const Case& c : cases)
     EXPECT_NEAR(bayes_accuracy(c.p, c.q), c.want, 1e-6);
+}
+
+// a manifest's entry states the paper's variance (or a std), never both
+TEST(BayesAccuracy, ReadsTheVarianceOrTheStd) {
+  const auto a = TruncatedNormal::from_json(
+      {{"mean", 0.75}, {"variance", 0.5}, {"lower", -1.5}, {"upper", 1.5}}, "interventions.j[0]");
+  EXPECT_EQ(a.std, std::sqrt(0.5));
+  EXPECT_EQ(a.mean, 0.75);
+  const auto b = TruncatedNormal::from_json(
+      {{"mean", 0.75}, {"std", 0.5}, {"lower", -1.5}, {"upper", 1.5}}, "interventions.j[0]");
+  EXPECT_EQ(b.std, 0.5);
+  const auto message = [](const nlohmann::json& j) {
+    try {
+      TruncatedNormal::from_json(j, "interventions.j[1]");
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_EQ(message({{"mean", 0}, {"variance", 1}, {"std", 1}, {"lower", 0}, {"upper", 1}}),
+            "interventions.j[1]: gives both variance and std; expected exactly one");
+  EXPECT_EQ(message({{"mean", 0}, {"lower", 0}, {"upper", 1}}),
+            "interventions.j[1]: gives neither variance nor std; expected exactly one");
+  EXPECT_NE(message({{"mean", 0}, {"variance", -1}, {"lower", 0}, {"upper", 1}})
+                .find("interventions.j[1].variance: expected a finite number > 0, got -1"),
+            std::string::npos);
 }
 
 TEST(BayesAccuracy, RefusesDegenerateDistributions) {

@@ -8,11 +8,13 @@
 
 namespace ropes::crl {
 
-/// TN(mean, std) truncated to [lower, upper].
+/// N(mean, std^2) truncated to [lower, upper].
 struct TruncatedNormal {
   double mean = 0, std = 1, lower = -1, upper = 1;
-  /// Reads {"mean", "std", "lower", "upper"} (the dataset manifest's distribution entries).
-  /// Throws std::invalid_argument naming `where` and the field.
+  /// Reads {"mean", "variance" or "std", "lower", "upper"} (the dataset manifest's
+  /// distribution entries; the paper's TN(mean, x) takes the variance x, std = sqrt(x)).
+  /// Throws std::invalid_argument naming `where` and the field, also when both or neither
+  /// of variance and std are given.
   static TruncatedNormal from_json(const nlohmann::json& j, const std::string& where);
   /// The density at x (0 outside [lower, upper]).
   double pdf(double x) const;

@@ -1,0 +1,26 @@
+#pragma once
+/// @file dataset_version.hpp
+/// require_current_sim_dataset: refuses a dataset that ropes-generate made before its
+/// distribution numbers meant what the paper's do.
+///
+/// Up to sim_dataset_version 2, ropes_sim read the second parameter of the paper's
+/// TN_[a,b](mu, x) as a standard deviation; the paper defines it as a variance (its line 472),
+/// so those datasets are not the paper's (for example the 2C angles have variance 0.16, not
+/// the paper's 0.35). Version 3 reads it as the paper does. ropes_crl does not link the
+/// simulator; it reads the version from the manifest's metadata.
+#include <ropes_nn/dataset.hpp>
+
+#include <filesystem>
+
+namespace ropes::crl {
+
+/// The oldest sim_dataset_version (manifest metadata) that ropes-train and ropes-eval accept.
+inline constexpr int kOldestSimDatasetVersion = 3;
+
+/// Throws nn::FileFormatError naming DIR/manifest.json, the version found and what to do
+/// (generate the dataset again) when the metadata holds a sim_dataset_version below
+/// kOldestSimDatasetVersion, or one that is not an integer. A dataset without the field
+/// (not made by ropes-generate: a user's own images) passes. Cost: a look-up in the metadata.
+void require_current_sim_dataset(const nn::DatasetReader& reader);
+
+}  // namespace ropes::crl
