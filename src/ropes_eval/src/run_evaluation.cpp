@@ -1,5 +1,6 @@
 #include "ropes_eval/run_evaluation.hpp"
 
+#include <ropes_crl/dataset_version.hpp>
 #include <ropes_crl/estimator.hpp>
 #include <ropes_nn/adam.hpp>
 #include <ropes_nn/dataset.hpp>
@@ -257,6 +258,7 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
 
   // the test dataset: not the training set, the run's cameras and image size
   const nn::DatasetReader reader = nn::DatasetReader::open(data_dir);
+  crl::require_current_sim_dataset(reader);  // never the old reading of TN(mean, x)
   reader.verify();  // a shard damaged after generation is refused, never evaluated on
   const fs::path manifest = data_dir / "manifest.json";
   ev.dataset_id = detail::read_json_file(manifest).value("dataset", "");
