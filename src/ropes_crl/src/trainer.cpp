@@ -577,6 +577,9 @@ nlohmann::json sparsity_matrix(const ExperimentConfig& config, const TrainingDat
 
 void train(const ExperimentConfig& config_in, const fs::path& data_dir, const fs::path& run_dir,
            const TrainOptions& options) {
+  if (options.last_stage < 1 || options.last_stage > 3)
+    throw std::invalid_argument("train: last_stage is " + std::to_string(options.last_stage) +
+                                "; expected 1 (AE1), 2 (the LDRs) or 3 (AE2)");
   nn::set_num_threads(options.threads);
   ExperimentConfig config = config_in;
   TrainingData data = TrainingData::open(config, data_dir, options.seed);
@@ -605,6 +608,8 @@ void train(const ExperimentConfig& config_in, const fs::path& data_dir, const fs
     run["stages"]["ae1"]["steps"] = config.ae1_training.steps;
     write_json_file(run_json, run);
   }
+  if (options.last_stage == 1)
+    return;
   data.load_codes(codes_file(run_dir));
   // the map of standardised codes, for the networks that read them: fitted once on every
   // code of the training anchors (all regimes), never on the held-out anchors that the LDRs'
@@ -636,6 +641,9 @@ void train(const ExperimentConfig& config_in, const fs::path& data_dir, const fs
                               {"epochs", o.epochs}};
     write_json_file(run_json, run);
   }
+
+  if (options.last_stage == 2)
+    return;
 
   // score differences v_k(y) = grad_y LDR_k(y), from the frozen classifiers, in AE2's
   // coordinates

@@ -36,6 +36,9 @@ options:
                      RUN/lambda-<L>_seed-<S>
   --sweep-seeds S    comma-separated seeds for the sweep (default: --seed)
   --progress MODE    bar, lines or auto (a bar on a terminal; the default)
+  --stages LIST      ae1, ae1,ldr or ae1,ldr,ae2 (the default): stop after AE1 and its
+                     codes, or after the LDRs, to screen an AE1 with ropes-eval --screen
+                     before training AE2; the same command without --stages continues
   --status           publish the run's progress as RunStatus on the DDS topic
                      ropes/run_status (ropes-echo run_status prints it); needs a build
                      with Fast DDS
@@ -208,7 +211,18 @@ int run(int argc, char** argv) {
       sweep_seeds = value;
     else if (flag == "--progress")
       progress = value;
-    else
+    else if (flag == "--stages") {
+      if (value == "ae1")
+        options.last_stage = 1;
+      else if (value == "ae1,ldr")
+        options.last_stage = 2;
+      else if (value == "ae1,ldr,ae2")
+        options.last_stage = 3;
+      else
+        throw UsageError("--stages is '" + value +
+                         "'; expected ae1, ae1,ldr or ae1,ldr,ae2 (each stage needs the ones "
+                         "before it)");
+    } else
       throw UsageError("unknown option '" + flag + "' (see --help)");
   }
   if (config_arg.empty() || data.empty() || out.empty())
@@ -246,7 +260,11 @@ int run(int argc, char** argv) {
     (void)status;
     ropes::crl::train(config, data, out, options);
 #endif
-    std::fprintf(stderr, "ropes-train: %s complete\n", out.c_str());
+    if (options.last_stage == 3)
+      std::fprintf(stderr, "ropes-train: %s complete\n", out.c_str());
+    else
+      std::fprintf(stderr, "ropes-train: %s: stages up to %s done; run without --stages to go on\n",
+                   out.c_str(), options.last_stage == 1 ? "ae1" : "ldr");
     return 0;
   }
   // the sweep: every lambda x seed, one run directory each, in order

@@ -37,6 +37,11 @@ namespace ropes::crl {
 struct TrainOptions {
   std::uint64_t seed = 0;
   int threads = 1;
+  /// The last stage to run: 1 AE1 (and the codes), 2 the LDRs, 3 AE2 (the whole run). A run
+  /// stopped before stage 3 is not complete (run.json has no "complete"); the same call with
+  /// a later stage continues it. Stages 1 and 2 are what screens an AE1 (ropes-eval
+  /// --screen) without training an AE2.
+  int last_stage = 3;
   /// true: a one-line progress bar on stderr (for a terminal); false: a log line every
   /// log_every steps.
   bool progress_bar = false;
@@ -49,7 +54,8 @@ struct TrainOptions {
   std::function<void(const nlohmann::json&)> on_metrics;
 };
 
-/// Runs (or resumes) every stage of `config` on the dataset in `data_dir` into `run_dir`.
+/// Runs (or resumes) the stages of `config` up to options.last_stage on the dataset in
+/// `data_dir` into `run_dir`.
 /// Throws std::invalid_argument, before writing anything, when the dataset does not match
 /// the config (cameras, image size, a joint without both interventions, missing columns) or
 /// `run_dir` holds a run of another config, dataset, seed or thread count; std::runtime_error
