@@ -94,6 +94,8 @@ nlohmann::json EvaluationReport::to_json() const {
                            {"occlusion", s.occlusion},
                            {"data_config", s.data_config},
                            {"results", s.evaluation.to_json()}});
+  if (screen)
+    j["screen"] = screen->to_json();
   return j;
 }
 
@@ -113,6 +115,8 @@ std::string EvaluationReport::table() const {
   }
   for (const std::string& n : notes)
     out << "  note: " << n << "\n";
+  if (screen)
+    out << screen->table();
   return out.str();
 }
 
@@ -294,6 +298,8 @@ std::string EvaluationReport::markdown() const {
     for (const std::string& n : notes)
       out << "- " << n << "\n";
   }
+  if (screen)
+    out << "\n" << screen->markdown();
   return out.str();
 }
 

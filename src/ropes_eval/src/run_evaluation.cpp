@@ -153,12 +153,12 @@ Eigen::RowVectorXd inverse_spread(const Eigen::RowVectorXd& sd) {
   return (sd.array() > 1e-3 * largest).select(sd.array().inverse(), 0.0);
 }
 
-// a small MLP from Y to all joints (Y -> 128 -> 128 -> J, ReLU, standardised targets),
-// Adam 1e-3, batches of 64 drawn by seed: test MSE per joint
-std::vector<double> mlp_probe(const Eigen::MatrixXd& y, const Eigen::MatrixXd& angles,
-                              const std::vector<Eigen::Index>& cal,
-                              const std::vector<Eigen::Index>& test, std::int64_t steps,
-                              std::uint64_t seed) {
+}  // namespace
+
+std::vector<double> detail::mlp_probe(const Eigen::MatrixXd& y, const Eigen::MatrixXd& angles,
+                                      const std::vector<Eigen::Index>& cal,
+                                      const std::vector<Eigen::Index>& test, std::int64_t steps,
+                                      std::uint64_t seed) {
   const std::int64_t in = y.cols(), j = angles.cols();
   nn::Sequential net;
   net.add(std::make_shared<nn::Dense>(in, 128));
@@ -205,8 +205,6 @@ std::vector<double> mlp_probe(const Eigen::MatrixXd& y, const Eigen::MatrixXd& a
             .mean());
   return out;
 }
-
-}  // namespace
 
 std::vector<ProtocolSplit> protocol_splits(std::int64_t n, std::int64_t repeats,
                                            std::int64_t calibration, std::int64_t test,
@@ -437,7 +435,7 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
   const std::vector<Eigen::Index>& test = splits[0].test;
   ev.probe_linear_mse = detail::linear_probe(y, angles, cal, test);
   if (options.probe_steps > 0)
-    ev.probe_mlp_mse = mlp_probe(y, angles, cal, test, options.probe_steps, options.seed);
+    ev.probe_mlp_mse = detail::mlp_probe(y, angles, cal, test, options.probe_steps, options.seed);
   for (std::int64_t k = 0; k < jn; ++k) {
     const Eigen::VectorXd a = angles(test, Eigen::all).col(k);
     ev.angle_variance.push_back((a.array() - a.mean()).square().mean());

@@ -455,6 +455,61 @@ TEST_F(Pipeline, DatasetsOfTheOldStandardDeviationReadingAreRefused) {
   EXPECT_FALSE(fs::exists(dir_ / "old_cache"));
 }
 
+// ropes-train --stages ae1,ldr stops before AE2 (the run is not complete); ropes-eval --screen
+// screens it (probes from AE1's code, the LDRs against Bayes); the same ropes-train without
+// --stages then finishes it, to the bytes of a run trained in one go
+TEST_F(Pipeline, StagesStopBeforeAe2AndScreeningReadsTheCode) {
+  const fs::path staged = dir_ / "staged", straight = dir_ / "straight";
+  Output o = train(staged.string(), "--stages ae1,ldr");
+  ASSERT_EQ(o.rc, 0) << o.text;
+  EXPECT_NE(o.text.find("stages up to ldr done; run without --stages to go on"), std::string::npos)
+      << o.text;
+  EXPECT_TRUE(fs::exists(staged / "codes.npy"));
+  EXPECT_TRUE(fs::exists(staged / "ldr.panda_joint6.safetensors"));
+  EXPECT_FALSE(fs::exists(staged / "ae2.panda_joint2.safetensors"));
+  EXPECT_FALSE(json_of(staged / "run.json").contains("complete"));
+
+  o = run(kEval + " --run " + staged.string() + " --screen --probe-steps 200");
+  ASSERT_EQ(o.rc, 0) << o.text;
+  EXPECT_NE(o.text.find("AE1 screening of 1c-tiny: probes from AE1's code fitted on 32 training "
+                        "anchors (224 rows), scored on 8 held-out anchors (56 rows)"),
+            std::string::npos)
+      << o.text;
+  EXPECT_NE(o.text.find("| panda_joint6 | "), std::string::npos) << o.text;
+  const nlohmann::json screen = json_of(staged / "screen.json");
+  EXPECT_EQ(screen["format"], "ropes-eval-screen");
+  ASSERT_EQ(screen["probe_mlp_r2"].size(), 3u) << screen.dump();
+  for (std::size_t k = 0; k < 3; ++k) {
+    EXPECT_TRUE(screen["ldr_accuracy"][k].is_number()) << screen.dump();
+    EXPECT_LE(screen["probe_linear_r2"][k].get<double>(), 1.0);
+  }
+  EXPECT_NEAR(screen["bayes_accuracy"][0].get<double>(), 0.83191037, 1e-6);  // the paper's 1C
+  EXPECT_TRUE(fs::exists(staged / "screen.md"));
+
+  // not a finished run: no evaluation by the protocol yet
+  o = run(kEval + " --run " + staged.string() + " --data " + (dir_ / "data1").string());
+  EXPECT_EQ(o.rc, 1) << o.text;
+  EXPECT_NE(o.text.find("has not finished training"), std::string::npos) << o.text;
+
+  // go on, and end where a run in one go ends
+  o = train(staged.string());
+  ASSERT_EQ(o.rc, 0) << o.text;
+  ASSERT_EQ(train(straight.string()).rc, 0);
+  EXPECT_TRUE(json_of(staged / "run.json").value("complete", false));
+  for (const char* f : kWeights)
+    EXPECT_EQ(bytes_of(staged / f), bytes_of(straight / f)) << f;
+
+  o = train((dir_ / "bad_stages").string(), "--stages ldr");
+  EXPECT_EQ(o.rc, 2) << o.text;
+  EXPECT_NE(o.text.find("--stages is 'ldr'; expected ae1, ae1,ldr or ae1,ldr,ae2"),
+            std::string::npos)
+      << o.text;
+  EXPECT_FALSE(fs::exists(dir_ / "bad_stages"));
+  o = run(kEval + " --run " + staged.string() + " --screen --data " + (dir_ / "data1").string());
+  EXPECT_EQ(o.rc, 2) << o.text;
+  EXPECT_NE(o.text.find("--screen takes no --data or --suite"), std::string::npos) << o.text;
+}
+
 // --sweep-lambda x --sweep-seeds: one complete run per pair, each with its lambda and seed
 TEST_F(Pipeline, SweepTrainsOneRunPerLambdaAndSeed) {
   const fs::path out = dir_ / "sweep";
@@ -765,15 +820,16 @@ TEST_F(Pipeline, RopesRunResumesInsideItsStagesAndEndsWithTheTable) {
       << other.text;
 }
 
-// The `small` 1C preset end to end (label `slow`, about 11 minutes on 2 cores): `ropes-run
+// The `small` 1C preset end to end (label `slow`, about 8 minutes on 2 cores): `ropes-run
 // 1c-small` with seed 0, the id suite by the paper's protocol, every joint's mean MCC at or
-// above the floor measured and reported in the ropes_crl issue (src/ropes_crl/README.md,
-// Results, three training seeds by this protocol: joint 2 0.978 / 0.959 / 0.980, joint 4
-// 0.950 / 0.943 / 0.928, joint 6 0.802 / 0.794 / 0.753), and seed 0 again on a second
-// machine (AMD EPYC, CPU family 26; ropes_nn is built with -march=native, so the trained
-// weights depend on the CPU; twice there, the same digits): 0.975 / 0.924 / 0.763. The floors
-// are each joint's lowest measured value; the issue's target of 0.90 is met on joints 2 and 4
-// and not on joint 6, whose floor is therefore below it. Prints the measured values.
+// above the floor measured on the datasets of sim_dataset_version 3 (the paper's TN variance;
+// src/ropes_crl/README.md, Results, three training seeds by this protocol on this
+// workspace's machine, AMD EPYC, CPU family 26: joint 2 0.980 / 0.986 / 0.987, joint 4
+// 0.951 / 0.939 / 0.936, joint 6 0.755 / 0.768 / 0.796). ropes_nn is built with
+// -march=native, so the trained weights depend on the CPU: the floors are each joint's lowest
+// value over the three seeds, rounded down, which seed 0 meets with its own (0.980 / 0.951 /
+// 0.755) and another CPU's seed 0 should meet as a fourth seed would. The issue's targets
+// (the paper's 0.949 / 0.975 / 0.957) are met on joint 2 only. Prints the measured values.
 // Under AddressSanitizer the preset trains far slower (AE1 at 5.6 images/s: over 3 hours
 // for its 2,000 steps alone), and clang's -O1 float arithmetic is not the Release build's
 // that the floors were measured on. So a sanitizer build runs the same job at the same
@@ -806,7 +862,7 @@ TEST_F(Pipeline, SmallPresetOneCameraReachesTheMeasuredMcc) {
   const nlohmann::json results = json_of(out / "report" / "results.json");
   const nlohmann::json& ropes = results["suites"][0]["results"]["methods"]["ropes"];
   const std::vector<std::string> joints = {"panda_joint2", "panda_joint4", "panda_joint6"};
-  const double floors[] = {0.959, 0.924, 0.753};
+  const double floors[] = {0.980, 0.936, 0.754};
   ASSERT_EQ(ropes["mcc"].size(), joints.size()) << ropes.dump();
   for (std::size_t k = 0; k < joints.size(); ++k) {
     const double mcc = ropes["mcc"][k].get<double>();

@@ -3,6 +3,7 @@
 #include <ropes_eval/evaluation_report.hpp>
 #include <ropes_eval/html_report.hpp>
 #include <ropes_eval/run_evaluation.hpp>
+#include <ropes_eval/screening.hpp>
 #include <ropes_eval/supervised.hpp>
 #include <ropes_nn/npy.hpp>
 #include <ropes_nn/parallel.hpp>
@@ -29,6 +30,7 @@ namespace fs = std::filesystem;
 
 const char* const kUsage = R"(usage: ropes-eval --run RUN --data DIR [options]
        ropes-eval --run RUN --suite id,ood,causal,occlusion [--out REPORT] [options]
+       ropes-eval --run RUN --screen [--out FILE] [--probe-steps N] [--seed S] [--threads T]
        ropes-eval --live [options]   (streamed estimates over DDS: ropes-eval --live --help)
 
 Evaluates the trained run in RUN on the observational samples of the dataset in DIR (one
@@ -52,9 +54,18 @@ The test sets are generated with ropes_sim's generator (as ropes-generate does) 
 --data-cache, one directory per config and seed; a second run generates nothing.
 --data DIR, given with --suite, is the id test set instead of a generated one.
 
+With --screen, screens AE1 before any AE2 trains (a run of `ropes-train --stages ae1,ldr`
+will do; a finished run too): per joint, the share of the angle's variance (R^2) that a
+supervised probe from AE1's code explains, fitted on 80 % of the training set's anchors and
+scored on the rest (a linear and an MLP probe; these labels serve the diagnostic only), and
+the LDR's held-out accuracy against the Bayes accuracy of its interventions. Prints the
+table and writes RUN/screen.json (or --out FILE) and screen.md beside it.
+
 options:
   --out FILE                results file (default RUN/results.json; the .md beside it);
-                            with --suite the report directory (default RUN/report)
+                            with --suite the report directory (default RUN/report); with
+                            --screen the screening's file (default RUN/screen.json)
+  --screen                  screen AE1 and the LDRs (see above)
   --suite LIST              the suites (see above)
   --data-cache DIR          where test sets are generated (default $ROPES_DATA_CACHE, else
                             $XDG_CACHE_HOME/ropes/test-data, else ~/.cache/ropes/test-data)
@@ -82,6 +93,7 @@ int run(int argc, char** argv) {
   int threads = 1;
   ropes::eval::RunEvaluationOptions options;
   tools::SuiteArgs suite_args;
+  bool screen = false;
   if (argc > 1 && std::string(argv[1]) == "--live") {
 #ifdef ROPES_EVAL_LIVE
     return tools::run_live(argc, argv);
@@ -94,6 +106,10 @@ int run(int argc, char** argv) {
     if (flag == "--help" || flag == "-h") {
       std::cout << kUsage;
       return 0;
+    }
+    if (flag == "--screen") {
+      screen = true;
+      continue;
     }
     if (i + 1 >= argc)
       throw UsageError("'" + flag + "' needs a value (see --help)");
@@ -141,8 +157,13 @@ int run(int argc, char** argv) {
     } else
       throw UsageError("unknown option '" + flag + "' (see --help)");
   }
-  if (run_dir.empty() || (data.empty() && suite_args.suites.empty()))
-    throw UsageError("--run and either --data or --suite are required (see --help)");
+  if (screen && (!data.empty() || !suite_args.suites.empty()))
+    throw UsageError("--screen takes no --data or --suite: it reads the run's training set");
+  if (run_dir.empty() || (data.empty() && suite_args.suites.empty() && !screen))
+    throw UsageError("--run and either --data, --suite or --screen are required (see --help)");
+  if (options.probe_steps < 0)
+    throw UsageError("--probe-steps is " + std::to_string(options.probe_steps) +
+                     "; expected 0 or more");
   if (options.repeats < 1 || options.repeats > 10000)
     throw UsageError("--repeats is " + std::to_string(options.repeats) + "; expected 1..10000");
   if (options.calibration_samples < 2 || options.test_samples < 2)
@@ -152,6 +173,22 @@ int run(int argc, char** argv) {
   if (threads < 1 || threads > 256)
     throw UsageError("--threads is " + std::to_string(threads) + "; expected 1..256");
   ropes::nn::set_num_threads(threads);
+  if (screen) {
+    ropes::eval::ScreeningOptions so;
+    so.probe_steps = options.probe_steps;
+    so.seed = options.seed;
+    const ropes::eval::Screening sc = ropes::eval::screen_run(run_dir, so);
+    const fs::path results = out.empty() ? fs::path(run_dir) / "screen.json" : fs::path(out);
+    write_text(results, sc.to_json().dump(2) + "\n");
+    fs::path markdown = results;
+    markdown.replace_extension(".md");
+    if (markdown == results)
+      markdown += ".md";
+    write_text(markdown, sc.markdown());
+    std::cout << sc.table() << "screening: " << results.string() << " and " << markdown.string()
+              << "\n";
+    return 0;
+  }
   if (!suite_args.suites.empty()) {
     const tools::SuiteOutcome outcome = tools::run_suites(
         run_dir, data, out, threads, options, suite_args,

@@ -1,6 +1,7 @@
 #include "suites.hpp"
 
 #include <ropes_eval/html_report.hpp>
+#include <ropes_eval/screening.hpp>
 #include <ropes_eval/supervised.hpp>
 #include <ropes_nn/npy.hpp>
 
@@ -184,6 +185,12 @@ SuiteOutcome run_suites(const std::string& run_dir, const std::string& data, con
       report.suites.push_back(std::move(s));
     }
   }
+  // AE1's information bound beside the suites: what its code holds of each joint
+  log("screening AE1's code and the LDRs");
+  ropes::eval::ScreeningOptions screening;
+  screening.probe_steps = options.probe_steps;
+  screening.seed = options.seed;
+  report.screen = ropes::eval::screen_run(run_dir, screening);
   const std::string setting = report.suites.front().evaluation.setting;
   const nlohmann::json paper = ropes::eval::paper_suite_numbers(setting, options.paper_results);
   report.paper_appendix = paper["appendix"];

@@ -10,10 +10,12 @@
 #include <nlohmann/json.hpp>
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "ropes_eval/run_evaluation.hpp"
+#include "ropes_eval/screening.hpp"
 
 namespace ropes::eval {
 
@@ -44,17 +46,21 @@ struct EvaluationReport {
   nlohmann::json paper_appendix;
   /// the paper's Table 1 "occl." row (paper_results.json "table1_occlusion")
   nlohmann::json paper_table1_occlusion;
+  /// what AE1's code holds of each joint and the LDRs' accuracy (screening.hpp), when screened
+  std::optional<Screening> screen;
 
   /// results.json: {"format": "ropes-eval-report", "format_version": 1, "run", "config",
   /// "setting", "suites": [{"name", "distribution", "occlusion", "data_config", "results":
-  /// RunEvaluation::to_json()}], "notes", "paper_appendix"}.
+  /// RunEvaluation::to_json()}], "notes", "paper_appendix", "screen": Screening::to_json()
+  /// (when screened)}.
   nlohmann::json to_json() const;
   /// results.md: the id suite's RunEvaluation::markdown(), the suites' MSE and MCC in the
   /// layout of the paper's appendix table, the baselines on every suite, and the label
   /// efficiency: the supervised baselines' MSE by fraction beside ROPES' and RoboPEPP's, and
-  /// for each joint the smallest fraction whose supervised MSE is at most ROPES'.
+  /// for each joint the smallest fraction whose supervised MSE is at most ROPES', and the
+  /// AE1 screening.
   std::string markdown() const;
-  /// The console table: the id suite's table, then one line per suite.
+  /// The console table: the id suite's table, then one line per suite, then the screening.
   std::string table() const;
   /// The suite named `name`, or nullptr.
   const SuiteResult* find(const std::string& name) const;

@@ -126,6 +126,14 @@ namespace detail {
 std::vector<double> linear_probe(const Eigen::MatrixXd& y, const Eigen::MatrixXd& angles,
                                  const std::vector<Eigen::Index>& cal,
                                  const std::vector<Eigen::Index>& test);
+/// The MLP probe of the diagnostics: Y -> 128 -> 128 -> J (ReLU), Y standardised as the
+/// linear probe does and each angle column standardised, both with the `cal` rows'
+/// statistics; Adam 1e-3 for `steps` batches of 64 of the `cal` rows, drawn by `seed`.
+/// Returns the `test` rows' MSE per angle column (rad^2 for angles).
+std::vector<double> mlp_probe(const Eigen::MatrixXd& y, const Eigen::MatrixXd& angles,
+                              const std::vector<Eigen::Index>& cal,
+                              const std::vector<Eigen::Index>& test, std::int64_t steps,
+                              std::uint64_t seed);
 }  // namespace detail
 
 }  // namespace ropes::eval
