@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <sstream>
 #include <stdexcept>
 #include <vector>
 
@@ -35,9 +36,12 @@ TruncatedNormal TruncatedNormal::from_json(const nlohmann::json& j, const std::s
         "; expected exactly one");
   if (has_variance) {
     const double variance = detail::get_double(j, where, "variance");
-    if (!(variance > 0) || !std::isfinite(variance))
+    if (!(variance > 0) || !std::isfinite(variance)) {
+      std::ostringstream got;
+      got << variance;
       throw std::invalid_argument(where + ".variance: expected a finite number > 0, got " +
-                                  std::to_string(variance));
+                                  got.str());
+    }
     d.std = std::sqrt(variance);
   } else {
     d.std = detail::get_double(j, where, "std");

@@ -2,17 +2,22 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cstdint>
+#include <filesystem>
 #include <string>
 
 #include <ropes_nn/npy.hpp>
 
 namespace ropes::crl {
 
-void require_current_sim_dataset(const nn::DatasetReader& reader) {
-  const nlohmann::json& meta = reader.metadata();
+namespace {
+
+// the metadata's sim_dataset_version checked: FileFormatError naming `manifest` when it is
+// not an integer or is older than the oldest version read
+void check_version(const nlohmann::json& meta, const std::string& manifest,
+                   const std::string& dataset_dir) {
   if (!meta.is_object() || !meta.contains("sim_dataset_version"))
     return;
-  const std::string manifest = (reader.dir() / "manifest.json").string();
   const nlohmann::json& v = meta["sim_dataset_version"];
   if (!v.is_number_integer())
     throw nn::FileFormatError(manifest + ": metadata.sim_dataset_version is not an integer (" +
@@ -26,7 +31,45 @@ void require_current_sim_dataset(const nn::DatasetReader& reader) {
         std::to_string(kOldestSimDatasetVersion) +
         "), so these are not the paper's distributions: generate the dataset again with this "
         "ropes-generate (into a new directory, or remove " +
-        reader.dir().string() + " first)");
+        dataset_dir + " first)");
+}
+
+// the JSON in `path`, or a discarded value when it is missing, over `limit` bytes or not JSON
+nlohmann::json json_if_readable(const std::filesystem::path& path, std::uint64_t limit) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec))
+    return nlohmann::json(nlohmann::json::value_t::discarded);
+  try {
+    return nlohmann::json::parse(nn::read_text_file(path, limit), nullptr, false);
+  } catch (const nn::FileFormatError&) {
+    return nlohmann::json(nlohmann::json::value_t::discarded);
+  }
+}
+
+}  // namespace
+
+void require_current_sim_dataset(const nn::DatasetReader& reader) {
+  check_version(reader.metadata(), (reader.dir() / "manifest.json").string(),
+                reader.dir().string());
+}
+
+void require_run_of_current_sim_dataset(const std::filesystem::path& run_dir) {
+  const nlohmann::json run = json_if_readable(run_dir / "run.json", nn::kMaxJsonFileBytes);
+  if (!run.is_object() || !run.contains("data_dir") || !run["data_dir"].is_string())
+    return;
+  const std::filesystem::path data_dir = run["data_dir"].get<std::string>();
+  // a manifest may be as large as ropes_nn's DatasetReader allows (64 MiB)
+  const nlohmann::json manifest =
+      json_if_readable(data_dir / "manifest.json", std::uint64_t{64} << 20);
+  if (!manifest.is_object() || !manifest.contains("metadata"))
+    return;
+  try {
+    check_version(manifest["metadata"], (data_dir / "manifest.json").string(), data_dir.string());
+  } catch (const nn::FileFormatError& e) {
+    throw nn::FileFormatError((run_dir / "run.json").string() +
+                              ": the run was trained on an outdated dataset: " + e.what() +
+                              ", and train the run again on it");
+  }
 }
 
 }  // namespace ropes::crl

@@ -1,4 +1,5 @@
 // ropes-stream: a trained run's Estimator as a DDS node: ImageFrames in, PoseEstimates out.
+#include <ropes_crl/dataset_version.hpp>
 #include <ropes_crl/estimator.hpp>
 #include <ropes_msgs/dds.hpp>
 #include <ropes_nn/dataset.hpp>
@@ -274,6 +275,7 @@ int run(int argc, char** argv) {
   std::unique_ptr<msgs::Publisher<msgs::JointState>> joint_pub;
   if (!replay_dir.empty()) {
     reader = std::make_unique<ropes::nn::DatasetReader>(ropes::nn::DatasetReader::open(replay_dir));
+    ropes::crl::require_current_sim_dataset(*reader);  // not the old reading of TN(mean, x)
     joint_pub = std::make_unique<msgs::Publisher<msgs::JointState>>(participant);
   }
   if (wait_for > 0) {

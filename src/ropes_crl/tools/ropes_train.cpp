@@ -255,7 +255,9 @@ int run(int argc, char** argv) {
       throw;
     }
     if (publisher)
-      publisher->finish("complete");
+      publisher->finish(options.last_stage == 3   ? "complete"
+                        : options.last_stage == 2 ? "stopped after ldr (--stages)"
+                                                  : "stopped after ae1 (--stages)");
 #else
     (void)status;
     ropes::crl::train(config, data, out, options);

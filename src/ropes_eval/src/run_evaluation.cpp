@@ -247,6 +247,7 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
   ev.run_dir = run_dir.string();
   ev.data_dir = data_dir.string();
   crl::Estimator estimator = crl::Estimator::load(run_dir);
+  crl::require_run_of_current_sim_dataset(run_dir);  // nor a run trained on it
   const crl::ExperimentConfig& config = estimator.config();
   const nlohmann::json run = detail::read_json_file(run_dir / "run.json");
   ev.config_name = config.name;

@@ -439,10 +439,23 @@ TEST_F(Pipeline, DatasetsOfTheOldStandardDeviationReadingAreRefused) {
       << o.text;
   EXPECT_FALSE(fs::exists(good / "results.json"));
 
-  // a run whose training set is of the old reading: its suites get no test set
+  // a run whose training set is of the old reading: not evaluated on a new test set, not
+  // screened, and its suites get no test set
   nlohmann::json r = json_of(good / "run.json");
   r["data_dir"] = old_train.string();
   std::ofstream(good / "run.json") << r.dump(2) << "\n";
+  o = run(kEval + " --run " + good.string() + " --data " + (dir_ / "data1").string() +
+          " --repeats 1 --calibration-samples 20 --test-samples 20");
+  EXPECT_EQ(o.rc, 1) << o.text;
+  EXPECT_NE(o.text.find("run.json: the run was trained on an outdated dataset: " +
+                        (old_train / "manifest.json").string() + ": " + why),
+            std::string::npos)
+      << o.text;
+  o = run(kEval + " --run " + good.string() + " --screen --probe-steps 0");
+  EXPECT_EQ(o.rc, 1) << o.text;
+  EXPECT_NE(o.text.find((old_train / "manifest.json").string() + ": " + why), std::string::npos)
+      << o.text;
+  EXPECT_FALSE(fs::exists(good / "screen.json"));
   o = run(kEval + " --run " + good.string() + " --data-cache " + (dir_ / "old_cache").string() +
           " --suite id --repeats 1 --calibration-samples 20 --test-samples 20 --out " +
           (dir_ / "old_report").string());
@@ -481,7 +494,10 @@ TEST_F(Pipeline, StagesStopBeforeAe2AndScreeningReadsTheCode) {
   ASSERT_EQ(screen["probe_mlp_r2"].size(), 3u) << screen.dump();
   for (std::size_t k = 0; k < 3; ++k) {
     EXPECT_TRUE(screen["ldr_accuracy"][k].is_number()) << screen.dump();
-    EXPECT_LE(screen["probe_linear_r2"][k].get<double>(), 1.0);
+    EXPECT_NEAR(
+        screen["probe_mlp_r2"][k].get<double>(),
+        1 - screen["probe_mlp_mse"][k].get<double>() / screen["angle_variance"][k].get<double>(),
+        1e-12);
   }
   EXPECT_NEAR(screen["bayes_accuracy"][0].get<double>(), 0.83191037, 1e-6);  // the paper's 1C
   EXPECT_TRUE(fs::exists(staged / "screen.md"));
@@ -498,6 +514,18 @@ TEST_F(Pipeline, StagesStopBeforeAe2AndScreeningReadsTheCode) {
   EXPECT_TRUE(json_of(staged / "run.json").value("complete", false));
   for (const char* f : kWeights)
     EXPECT_EQ(bytes_of(staged / f), bytes_of(straight / f)) << f;
+
+  // AE1 alone: codes, no LDR; the screening's LDR columns are empty
+  const fs::path ae1_only = dir_ / "ae1_only";
+  ASSERT_EQ(train(ae1_only.string(), "--stages ae1").rc, 0);
+  EXPECT_TRUE(fs::exists(ae1_only / "codes.npy"));
+  EXPECT_FALSE(fs::exists(ae1_only / "ldr.panda_joint2.safetensors"));
+  o = run(kEval + " --run " + ae1_only.string() + " --screen --probe-steps 0");
+  ASSERT_EQ(o.rc, 0) << o.text;
+  const nlohmann::json only = json_of(ae1_only / "screen.json");
+  EXPECT_TRUE(only["ldr_accuracy"][0].is_null()) << only.dump();
+  EXPECT_TRUE(only["probe_mlp_r2"].empty()) << only.dump();
+  EXPECT_EQ(only["probe_linear_r2"], screen["probe_linear_r2"]);  // the same AE1 and split
 
   o = train((dir_ / "bad_stages").string(), "--stages ldr");
   EXPECT_EQ(o.rc, 2) << o.text;

@@ -180,8 +180,12 @@ void refuse_old_reading(const fs::path& dir, const fs::path& file, const Json& m
   const Json& v = meta["sim_dataset_version"];
   if (v.is_number_integer() && v.get<std::int64_t>() >= kFirstVarianceReadingVersion)
     return;
-  const std::string version =
-      v.is_number_integer() ? std::to_string(v.get<std::int64_t>()) : std::string(v.type_name());
+  if (!v.is_number_integer())
+    throw std::runtime_error(
+        file.string() + ": sim_dataset_version is a " + std::string(v.type_name()) +
+        ", expected an integer: not a dataset of this ropes-generate; remove " + dir.string() +
+        " and generate it again, or choose another --out");
+  const std::string version = std::to_string(v.get<std::int64_t>());
   throw std::runtime_error(
       file.string() + ": sim_dataset_version " + version +
       ", made when ropes-generate read the paper's TN(mean, x) as a standard deviation; the "

@@ -23,4 +23,12 @@ inline constexpr int kOldestSimDatasetVersion = 3;
 /// (not made by ropes-generate: a user's own images) passes. Cost: a look-up in the metadata.
 void require_current_sim_dataset(const nn::DatasetReader& reader);
 
+/// The same for the training set of the run in `run_dir`: throws nn::FileFormatError naming
+/// RUN/run.json, the training set's manifest, the version and what to do (generate the
+/// dataset again and train the run again) when the manifest run.json's data_dir points to
+/// holds a sim_dataset_version below kOldestSimDatasetVersion. A run whose training set is
+/// gone or unreadable passes (there is nothing to tell), as does a run.json without data_dir.
+/// Cost: reads run.json and the manifest.
+void require_run_of_current_sim_dataset(const std::filesystem::path& run_dir);
+
 }  // namespace ropes::crl
