@@ -778,7 +778,9 @@ TEST_F(Pipeline, RopesRunResumesInsideItsStagesAndEndsWithTheTable) {
                                          "--test-samples",
                                          "20",
                                          "--supervised",
-                                         "100"};
+                                         "100",
+                                         "--probe-steps",
+                                         "50"};
   const Killed k = run_until_killed(args, "checkpoint ae2 panda_joint4 step 100");
   const std::string& seen = k.seen;
   const bool sent = k.sent;

@@ -57,8 +57,8 @@ options:
   --dataset-config D    the dataset config to generate (default: CONFIG's dataset.config)
   --suite LIST          the suites (default id,ood,occlusion; ood is skipped with a note
                         for one camera)
-  --repeats R, --calibration-samples C, --test-samples N, --supervised LIST
-                        as ropes-eval's
+  --repeats R, --calibration-samples C, --test-samples N, --supervised LIST,
+  --probe-steps N       as ropes-eval's
   --threads T           compute threads (default 1; a resumed run must use the same T)
   --progress MODE       bar, lines or auto (a bar on a terminal; the default)
 )";
@@ -123,6 +123,8 @@ int run(int argc, char** argv) {
       eval.test_samples = parse_number<std::int64_t>(flag, value);
     else if (flag == "--supervised")
       suites.supervised = tools::parse_supervised(flag, value);
+    else if (flag == "--probe-steps")
+      eval.probe_steps = parse_number<std::int64_t>(flag, value);
     else if (flag == "--threads")
       threads = parse_number<int>(flag, value);
     else if (flag == "--progress") {
@@ -136,6 +138,9 @@ int run(int argc, char** argv) {
     throw UsageError("CONFIG is required (see --help)");
   if (threads < 1 || threads > 256)
     throw UsageError("--threads is " + std::to_string(threads) + "; expected 1..256");
+  if (eval.probe_steps < 0)
+    throw UsageError("--probe-steps is " + std::to_string(eval.probe_steps) +
+                     "; expected 0 or more");
   if (eval.repeats < 1 || eval.repeats > 10000 || eval.calibration_samples < 2 ||
       eval.test_samples < 2)
     throw UsageError("--repeats must be 1..10000 and the sample counts at least 2 (they are " +
@@ -259,6 +264,7 @@ int run(int argc, char** argv) {
                                      {"repeats", eval.repeats},
                                      {"calibration_samples", eval.calibration_samples},
                                      {"test_samples", eval.test_samples},
+                                     {"probe_steps", eval.probe_steps},
                                      {"supervised", suites.supervised}};
   if (finished("evaluate") &&
       state["stages"]["evaluate"].value("arguments", nlohmann::json()) != evaluation) {
