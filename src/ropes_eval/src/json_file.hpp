@@ -4,12 +4,21 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <filesystem>
 #include <sstream>
 #include <string>
 #include <vector>
 
 namespace ropes::eval::detail {
+
+// numbers as results files hold them: a JSON array, NaN and infinities as null
+inline nlohmann::json numbers_or_null(const std::vector<double>& v) {
+  nlohmann::json a = nlohmann::json::array();
+  for (double x : v)
+    a.push_back(std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr));
+  return a;
+}
 
 // the file's JSON; nn::FileFormatError naming it when it cannot be opened or parsed, or
 // holds more than nn::kMaxJsonFileBytes (refused by its size, before it is read)

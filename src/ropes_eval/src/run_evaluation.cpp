@@ -460,12 +460,7 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
 }
 
 nlohmann::json RunEvaluation::to_json() const {
-  auto nums = [](const std::vector<double>& v) {
-    nlohmann::json a = nlohmann::json::array();
-    for (double x : v)
-      a.push_back(std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr));
-    return a;
-  };
+  const auto nums = detail::numbers_or_null;
   auto scores = [&](const MethodScores& m) {
     return nlohmann::json{{"mcc", nums(m.mcc)},
                           {"mse", nums(m.mse)},

@@ -180,12 +180,7 @@ Screening screen_run(const fs::path& run_dir, const ScreeningOptions& options) {
 }
 
 nlohmann::json Screening::to_json() const {
-  auto nums = [](const std::vector<double>& v) {
-    nlohmann::json a = nlohmann::json::array();
-    for (double x : v)
-      a.push_back(std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr));
-    return a;
-  };
+  const auto nums = detail::numbers_or_null;
   return {{"format", "ropes-eval-screen"},
           {"format_version", 1},
           {"run", run_dir},
