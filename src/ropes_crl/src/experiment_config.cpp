@@ -93,7 +93,7 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
     reject_unknown_keys(
         a1, "config.ae1",
         {"stem", "stem_factor", "stem_channels", "widths", "blocks_per_stage", "code_channels",
-         "batch_size", "steps", "epochs", "micro_batch", "optimizer"});
+         "code_head", "batch_size", "steps", "epochs", "micro_batch", "optimizer"});
     c.ae1.image_size = c.image_size;
     c.ae1.stem = get_string(a1, "config.ae1", "stem");
     c.ae1.stem_factor = static_cast<int>(get_int(a1, "config.ae1", "stem_factor"));
@@ -101,6 +101,8 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
     c.ae1.widths = get_ints(a1, "config.ae1", "widths");
     c.ae1.blocks_per_stage = static_cast<int>(get_int(a1, "config.ae1", "blocks_per_stage"));
     c.ae1.code_channels = get_int(a1, "config.ae1", "code_channels");
+    if (a1.contains("code_head"))  // optional: "conv_relu", the paper's, when absent
+      c.ae1.code_head = get_string(a1, "config.ae1", "code_head");
     if (const std::string p = c.ae1.problem(); !p.empty())
       throw std::invalid_argument("config." + p);
     c.ae1_training.batch_size = get_int(a1, "config.ae1", "batch_size");

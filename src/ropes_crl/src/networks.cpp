@@ -85,6 +85,9 @@ std::string Ae1Spec::problem() const {
     return p;
   if (blocks_per_stage < 0)
     return "ae1.blocks_per_stage: expected >= 0, got " + std::to_string(blocks_per_stage);
+  if (code_head != "conv_relu" && code_head != "linear" && code_head != "resblock_linear")
+    return "ae1.code_head: expected \"conv_relu\", \"linear\" or \"resblock_linear\", got \"" +
+           code_head + "\"";
   if (code_channels < 1)
     return "ae1.code_channels: expected >= 1, got " + std::to_string(code_channels);
   std::int64_t div = (stem == "patchify" ? stem_factor : 1) << widths.size();
@@ -96,10 +99,14 @@ std::string Ae1Spec::problem() const {
 }
 
 nlohmann::json Ae1Spec::to_json() const {
-  return {
+  nlohmann::json j = {
       {"image_size", image_size},       {"stem", stem},     {"stem_factor", stem_factor},
       {"stem_channels", stem_channels}, {"widths", widths}, {"blocks_per_stage", blocks_per_stage},
       {"code_channels", code_channels}};
+  // absent means the paper's head: the weight files of the paper's AE1 keep their bytes
+  if (code_head != "conv_relu")
+    j["code_head"] = code_head;
+  return j;
 }
 
 Ae1Spec Ae1Spec::from_json(const nlohmann::json& j) {
@@ -112,6 +119,8 @@ Ae1Spec Ae1Spec::from_json(const nlohmann::json& j) {
   s.widths = get_ints(j, "ae1", "widths");
   s.blocks_per_stage = static_cast<int>(get_int(j, "ae1", "blocks_per_stage"));
   s.code_channels = get_int(j, "ae1", "code_channels");
+  if (j.contains("code_head"))
+    s.code_head = get_string(j, "ae1", "code_head");
   if (const std::string p = s.problem(); !p.empty())
     throw std::invalid_argument(p);
   return s;
@@ -131,15 +140,29 @@ Ae1::Ae1(const Ae1Spec& spec) : spec_(spec) {
                                            spec.stem_factor, Padding2d::valid()));
     c = spec.stem_channels;
   }
+  const bool head = spec.code_head == "resblock_linear";
   for (std::size_t s = 0; s < n; ++s) {
     const std::int64_t w = spec.widths[s];
+    const bool last = s + 1 == n;
     add_stage(*encoder_, c, w, spec.blocks_per_stage);
-    encoder_->add(std::make_shared<Conv2d>(w, s + 1 < n ? w : spec.code_channels, 3, 2));
-    encoder_->add(std::make_shared<nn::ReLU>());
+    encoder_->add(std::make_shared<Conv2d>(w, last && !head ? spec.code_channels : w, 3, 2));
+    if (!(last && spec.code_head == "linear"))
+      encoder_->add(std::make_shared<nn::ReLU>());
     c = w;
+  }
+  const std::int64_t deepest = spec.widths.back();
+  if (head) {
+    encoder_->add(std::make_shared<ResBlockGN>(deepest));
+    encoder_->add(std::make_shared<nn::GroupNorm>(deepest));
+    encoder_->add(std::make_shared<nn::ReLU>());
+    encoder_->add(std::make_shared<Conv2d>(deepest, spec.code_channels, 1));
   }
   // decoder: the mirror, each stage ending in a stride-2 transposed conv
   c = spec.code_channels;
+  if (head) {
+    add_stage(*decoder_, c, deepest, 1);
+    c = deepest;
+  }
   for (std::size_t s = n; s-- > 0;) {
     const std::int64_t w = spec.widths[s];
     add_stage(*decoder_, c, w, spec.blocks_per_stage);

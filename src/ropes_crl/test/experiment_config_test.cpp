@@ -68,6 +68,12 @@ TEST(ExperimentConfig, ErrorsNameTheFileTheFieldAndTheValue) {
             std::string::npos)
       << error_of(j);
   j = c.raw;
+  j["ae1"]["code_head"] = "sigmoid";
+  EXPECT_NE(error_of(j).find("config.ae1.code_head: expected \"conv_relu\", \"linear\" or "
+                             "\"resblock_linear\", got \"sigmoid\""),
+            std::string::npos)
+      << error_of(j);
+  j = c.raw;
   j["ae2"]["input_normalization"] = 1;
   EXPECT_NE(error_of(j).find("config.ae2.input_normalization"), std::string::npos) << error_of(j);
   j = c.raw;

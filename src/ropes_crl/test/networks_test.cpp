@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -43,6 +44,47 @@ TEST(Networks, SmallAe1MapsImagesToEightByEightCodesAndBack) {
   const Tensor y = net.encode(x);
   EXPECT_EQ(y.shape(), (Shape{2, 1, 8, 8}));
   EXPECT_EQ(net.decode(y).shape(), (Shape{2, 1, 128, 128}));
+}
+
+TEST(Networks, Ae1CodeHeadsEndTheEncoderAsNamed) {
+  Ae1Spec paper;
+  paper.stem = "patchify";
+  paper.widths = {32, 64};
+  paper.blocks_per_stage = 1;
+  Ae1Spec linear = paper, resblock = paper;
+  linear.code_head = "linear";
+  resblock.code_head = "resblock_linear";
+  Ae1 a(paper), b(linear), c(resblock);
+  a.initialize(5);
+  b.initialize(5);
+  c.initialize(5);
+  const Tensor x = ramp(Shape{2, 1, 128, 128});
+  const Tensor ya = a.encode(x), yb = b.encode(x), yc = c.encode(x);
+  for (const Tensor* y : {&ya, &yb, &yc})
+    EXPECT_EQ(y->shape(), (Shape{2, 1, 8, 8}));
+  EXPECT_EQ(c.decode(yc).shape(), (Shape{2, 1, 128, 128}));
+  // the same weights: the linear head is the paper's before its ReLU
+  EXPECT_EQ(a.parameter_count(), b.parameter_count());
+  int negative = 0;
+  for (std::int64_t i = 0; i < yb.numel(); ++i) {
+    EXPECT_FLOAT_EQ(ya.data()[i], std::max(0.0f, yb.data()[i]));
+    negative += yb.data()[i] < 0;
+  }
+  EXPECT_GT(negative, 0);
+  // counted by hand: the last stride-2 conv 64 -> 64 instead of 64 -> 1 (+36,351), a
+  // ResBlockGN(64) (2 x 36,928 + 2 x 128), GroupNorm(64) (128) and a 1x1 conv 64 -> 1 (65)
+  // in the encoder; a Conv3x3 1 -> 64 (640) and a ResBlockGN(64) in front of the decoder,
+  // whose first conv then reads 64 channels (+36,288)
+  EXPECT_EQ(c.parameter_count() - a.parameter_count(), 110'656 + 111'040);
+  // the field is written only when it is not the paper's, and read back
+  EXPECT_FALSE(paper.to_json().contains("code_head"));
+  EXPECT_EQ(Ae1Spec::from_json(resblock.to_json()).code_head, "resblock_linear");
+  Ae1Spec wrong = paper;
+  wrong.code_head = "tanh";
+  EXPECT_NE(wrong.problem().find("ae1.code_head: expected \"conv_relu\", \"linear\" or "
+                                 "\"resblock_linear\", got \"tanh\""),
+            std::string::npos)
+      << wrong.problem();
 }
 
 TEST(Networks, PaperSpecsBuildTheAppendixShapes) {

@@ -30,6 +30,7 @@ using nn::Tensor;
 /// Conv3x3(c -> widths[s]), blocks x ResBlockGN, ConvTranspose4x4 stride 2, ReLU; then
 /// Conv3x3(-> 1) (stem "none") or ConvTranspose stem x stem stride stem (stem "patchify"),
 /// ReLU. The paper: stem none, widths 64/128/256/512, 2 blocks, image 128, code 8x8x1.
+/// code_head changes how the encoder ends (see the field); the paper's is "conv_relu".
 struct Ae1Spec {
   std::int64_t image_size = 128;
   std::string stem = "none";  ///< "none" or "patchify" (a k x k stride-k conv, k = stem_factor)
@@ -38,6 +39,13 @@ struct Ae1Spec {
   std::vector<std::int64_t> widths = {64, 128, 256, 512};
   int blocks_per_stage = 2;
   std::int64_t code_channels = 1;
+  /// How the encoder ends. "conv_relu" (the paper's): the last stride-2 conv gives the code,
+  /// then ReLU. "linear": the same conv without the ReLU. "resblock_linear": the last
+  /// stride-2 conv keeps widths.back() channels (ReLU), then at the code's side ResBlockGN,
+  /// GroupNorm, ReLU and a linear 1x1 conv to code_channels; the decoder starts with
+  /// Conv3x3(code_channels -> widths.back()) and a ResBlockGN there. Written to JSON only
+  /// when not "conv_relu", so files from before the field read as the paper's.
+  std::string code_head = "conv_relu";
 
   /// The code's side: image_size / (stem factor) / 2^stages.
   std::int64_t code_size() const;
