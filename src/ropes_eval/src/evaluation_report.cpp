@@ -88,12 +88,18 @@ nlohmann::json EvaluationReport::to_json() const {
     j["config"] = suites[0].evaluation.config_name;
     j["setting"] = suites[0].evaluation.setting;
   }
+  auto entry = [](const SuiteResult& s) {
+    return nlohmann::json{{"name", s.name},
+                          {"distribution", s.distribution},
+                          {"occlusion", s.occlusion},
+                          {"data_config", s.data_config},
+                          {"results", s.evaluation.to_json()}};
+  };
   for (const SuiteResult& s : suites)
-    j["suites"].push_back({{"name", s.name},
-                           {"distribution", s.distribution},
-                           {"occlusion", s.occlusion},
-                           {"data_config", s.data_config},
-                           {"results", s.evaluation.to_json()}});
+    j["suites"].push_back(entry(s));
+  j["occlusion_diagnostics"] = nlohmann::json::array();
+  for (const SuiteResult& s : occlusion_diagnostics)
+    j["occlusion_diagnostics"].push_back(entry(s));
   if (screen)
     j["screen"] = screen->to_json();
   return j;
@@ -117,6 +123,81 @@ std::string EvaluationReport::table() const {
     out << "  note: " << n << "\n";
   if (screen)
     out << screen->table();
+  return out.str();
+}
+
+std::vector<OcclusionDiagnosticRow> EvaluationReport::occlusion_rows() const {
+  std::vector<OcclusionDiagnosticRow> rows;
+  std::vector<const SuiteResult*> occluded;
+  for (const std::vector<SuiteResult>* list : {&suites, &occlusion_diagnostics})
+    for (const SuiteResult& s : *list)
+      if (s.occlusion > 0)
+        occluded.push_back(&s);
+  for (const SuiteResult* s : occluded) {
+    const RunEvaluation& ev = s->evaluation;
+    for (const char* name : {"ropes", "ldr_logit", "lambda0_autoencoder", "supervised_100%"}) {
+      const MethodSummary* m = method(ev, name);
+      if (m == nullptr)
+        continue;
+      rows.push_back({s->name, name, "all", m->mean.mcc});
+      if (!ev.occlusion_split)
+        continue;
+      const OcclusionSplit& sp = *ev.occlusion_split;
+      for (std::size_t i = 0; i < sp.methods.size(); ++i)
+        if (sp.methods[i] == name) {
+          rows.push_back({s->name, name, "squares hide robot pixels", sp.mcc_hiding[i]});
+          rows.push_back({s->name, name, "squares miss the robot", sp.mcc_missing[i]});
+        }
+    }
+  }
+  return rows;
+}
+
+std::string EvaluationReport::occlusion_markdown() const {
+  const std::vector<OcclusionDiagnosticRow> rows = occlusion_rows();
+  if (rows.empty())
+    return "";
+  std::ostringstream out;
+  out << "\n## Occlusion diagnostics: which stage breaks\n\n"
+         "AE1's code shift: E|Y_occluded − Y_clean|² / E|Y_clean − mean|² over the test set's "
+         "observational samples (0: the code does not move; 1: as far as a clean code lies "
+         "from the mean code). Hiding: the share of samples whose squares cover at least one "
+         "robot pixel (the robot's silhouette rendered from the sample's angles), and the mean "
+         "share of the robot's pixels covered.\n\n"
+         "| suite | occluded cameras | AE1 code shift | samples whose squares hide the robot | "
+         "robot pixels hidden |\n| --- | --- | --- | --- | --- |\n";
+  for (const std::vector<SuiteResult>* list : {&suites, &occlusion_diagnostics})
+    for (const SuiteResult& s : *list) {
+      if (s.occlusion <= 0)
+        continue;
+      const RunEvaluation& ev = s.evaluation;
+      std::string cams;
+      for (std::int64_t c : ev.occluded_cameras)
+        cams += (cams.empty() ? "" : ", ") + std::to_string(c);
+      out << "| " << s.name << " | " << (cams.empty() ? "all" : cams) << " | " << fmt(ev.code_shift)
+          << " | " << (ev.occlusion_split ? fmt(ev.occlusion_split->share_hiding) : "--") << " | "
+          << (ev.occlusion_split ? fmt(ev.occlusion_split->robot_hidden) : "--") << " |\n";
+    }
+  out << "\nMCC per joint (mean over the repeats) of the methods that tell the stages apart: "
+         "ropes (AE1, LDRs, AE2), ldr_logit (AE1 and the LDRs, no AE2), lambda0_autoencoder "
+         "(AE2 without the sparsity term) and supervised_100% (an encoder fitted with every "
+         "label on clean codes: what AE1's code still holds). Where ldr_logit holds and ropes "
+         "falls, AE2 is fragile; where supervised_100% falls too, AE1's code is.\n\n"
+         "| suite | method | test samples |";
+  const std::vector<std::string>& joints =
+      (suites.empty() ? occlusion_diagnostics : suites).front().evaluation.joints;
+  for (const std::string& j : joints)
+    out << " " << j << " |";
+  out << "\n| --- | --- | --- |";
+  for (std::size_t k = 0; k < joints.size(); ++k)
+    out << " --- |";
+  out << "\n";
+  for (const OcclusionDiagnosticRow& r : rows) {
+    out << "| " << r.suite << " | " << r.method << " | " << r.samples << " |";
+    for (double v : r.mcc)
+      out << " " << fmt(v) << " |";
+    out << "\n";
+  }
   return out.str();
 }
 
@@ -293,6 +374,7 @@ std::string EvaluationReport::markdown() const {
       out << "\n";
     }
   }
+  out << occlusion_markdown();
   if (!notes.empty()) {
     out << "\n## Suites not run\n\n";
     for (const std::string& n : notes)

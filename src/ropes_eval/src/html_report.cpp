@@ -471,6 +471,46 @@ std::string html_report(const EvaluationReport& report, const fs::path& run_dir,
       h << "</div>\n";
     }
   }
+  // the occlusion diagnostics: which stage breaks (EvaluationReport::occlusion_markdown)
+  const std::vector<OcclusionDiagnosticRow> diagnostic_rows = report.occlusion_rows();
+  if (!diagnostic_rows.empty()) {
+    h << "<h2>Occlusion diagnostics: which stage breaks</h2>\n<p>AE1's code shift: "
+         "E|Y<sub>occluded</sub> − Y<sub>clean</sub>|² / E|Y<sub>clean</sub> − mean|² (0: the "
+         "code does not move). Hiding: samples whose squares cover robot pixels, and the mean "
+         "share of the robot's pixels covered.</p>\n<table class=\"occlusion-diagnostics\">"
+         "<tr><th>suite</th><th>occluded cameras</th><th>AE1 code shift</th><th>samples whose "
+         "squares hide the robot</th><th>robot pixels hidden</th></tr>\n";
+    for (const std::vector<SuiteResult>* list : {&report.suites, &report.occlusion_diagnostics})
+      for (const SuiteResult& s : *list) {
+        if (s.occlusion <= 0)
+          continue;
+        const RunEvaluation& ev = s.evaluation;
+        std::string cams;
+        for (std::int64_t c : ev.occluded_cameras)
+          cams += (cams.empty() ? "" : ", ") + std::to_string(c);
+        h << "<tr><td>" << escape(s.name) << "</td><td>" << (cams.empty() ? "all" : cams)
+          << "</td><td>" << fmt(ev.code_shift) << "</td><td>"
+          << (ev.occlusion_split ? fmt(ev.occlusion_split->share_hiding) : "--") << "</td><td>"
+          << (ev.occlusion_split ? fmt(ev.occlusion_split->robot_hidden) : "--") << "</td></tr>\n";
+      }
+    h << "</table>\n<p>MCC per joint: ropes (AE1, LDRs, AE2), ldr_logit (no AE2), "
+         "lambda0_autoencoder (no sparsity term) and supervised_100% (every label, clean codes: "
+         "what AE1's code still holds). Where ldr_logit holds and ropes falls, AE2 is fragile; "
+         "where supervised_100% falls too, AE1's code is.</p>\n<table "
+         "class=\"occlusion-diagnostics\"><tr><th>suite</th><th>method</th><th>test "
+         "samples</th>";
+    for (const std::string& j : joints)
+      h << "<th>" << escape(j) << "</th>";
+    h << "</tr>\n";
+    for (const OcclusionDiagnosticRow& r : diagnostic_rows) {
+      h << "<tr><td>" << escape(r.suite) << "</td><td>" << escape(r.method) << "</td><td>"
+        << escape(r.samples) << "</td>";
+      for (double v : r.mcc)
+        h << "<td>" << fmt(v) << "</td>";
+      h << "</tr>\n";
+    }
+    h << "</table>\n";
+  }
   if (!images.intervention_rows.empty()) {
     h << "<h2>Interventions: one anchor in every regime</h2>\n";
     for (std::size_t c = 0; c < images.intervention_rows.size(); ++c) {

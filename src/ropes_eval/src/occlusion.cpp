@@ -31,9 +31,25 @@ OcclusionSquare occlusion_square(std::uint64_t seed, std::int64_t sample, std::i
   return s;
 }
 
+std::vector<std::int64_t> occluded_cameras(std::int64_t cameras,
+                                           const std::vector<std::int64_t>& only_cameras) {
+  if (only_cameras.empty()) {
+    std::vector<std::int64_t> all(static_cast<std::size_t>(std::max<std::int64_t>(cameras, 0)));
+    for (std::size_t c = 0; c < all.size(); ++c)
+      all[c] = static_cast<std::int64_t>(c);
+    return all;
+  }
+  for (std::int64_t c : only_cameras)
+    if (c < 0 || c >= cameras)
+      throw std::invalid_argument("occlude: camera " + std::to_string(c) +
+                                  " is asked to be occluded; expected a camera in [0, " +
+                                  std::to_string(cameras) + ")");
+  return only_cameras;
+}
+
 void occlude(std::vector<std::uint8_t>& images, const std::vector<std::int64_t>& samples,
              std::int64_t cameras, std::int64_t height, std::int64_t width, std::int64_t size,
-             std::uint64_t seed) {
+             std::uint64_t seed, const std::vector<std::int64_t>& only_cameras) {
   const std::int64_t plane = height * width;
   if (cameras < 1 || height < 1 || width < 1 ||
       static_cast<std::int64_t>(images.size()) !=
@@ -44,8 +60,9 @@ void occlude(std::vector<std::uint8_t>& images, const std::vector<std::int64_t>&
                                 "x" + std::to_string(height) +
                                 "; expected samples * cameras * "
                                 "height * width");
+  const std::vector<std::int64_t> painted = occluded_cameras(cameras, only_cameras);
   for (std::size_t i = 0; i < samples.size(); ++i)
-    for (std::int64_t c = 0; c < cameras; ++c) {
+    for (std::int64_t c : painted) {
       const OcclusionSquare s = occlusion_square(seed, samples[i], c, width, height, size);
       std::uint8_t* img = images.data() + (static_cast<std::int64_t>(i) * cameras + c) * plane;
       for (std::int64_t r = s.y; r < s.y + s.size; ++r)

@@ -12,6 +12,7 @@
 
 #include <Eigen/Dense>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -315,25 +316,62 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
         std::to_string(wanted) +
         "): generate more anchors, or ask for fewer (--calibration-samples, --test-samples)");
 
+  const std::vector<std::int64_t> painted =
+      occluded_cameras(config.cameras, options.occluded_cameras);  // checked before encoding
+
   // latents of every observational sample, in chunks
   const std::int64_t n = static_cast<std::int64_t>(rows.size()),
                      jn = static_cast<std::int64_t>(config.joints.size());
   const std::int64_t side = config.image_size, per = config.cameras * side * side;
-  Eigen::MatrixXd z(n, jn), z0(n, jn), logit(n, jn), angles(n, jn), y;
+  Eigen::MatrixXd z(n, jn), z0(n, jn), logit(n, jn), angles(n, jn), y, y_clean;
   const nn::NpyArray angle_rows = reader.read_rows_at("angles", rows);
   const std::int64_t angle_width = reader.column("angles").row_shape[0];
+  // with robot_masks: per sample, robot pixels the squares hide and robot pixels in all
+  const bool split_by_robot = options.occlusion > 0 && options.robot_masks != nullptr;
+  std::vector<std::int64_t> hidden(split_by_robot ? static_cast<std::size_t>(n) : 0),
+      robot(hidden.size());
+  std::vector<std::uint8_t> masks(split_by_robot ? static_cast<std::size_t>(per) : 0);
+  auto to_input = [&](const std::vector<std::uint8_t>& bytes, std::int64_t m) {
+    nn::Buffer x(static_cast<std::size_t>(m * per));
+    for (std::size_t i = 0; i < x.size(); ++i)
+      x[i] = static_cast<float>(bytes[i]) / 255.0f;
+    return Tensor(Shape{m, config.cameras, side, side}, std::move(x));
+  };
   for (std::int64_t b = 0; b < n; b += 256) {
     const std::int64_t m = std::min<std::int64_t>(256, n - b);
     const std::vector<std::int64_t> part(rows.begin() + b, rows.begin() + b + m);
     nn::NpyArray raw = reader.read_rows_at("images", part);
-    if (options.occlusion > 0)
-      occlude(raw.data, part, config.cameras, side, side, options.occlusion,
-              options.occlusion_seed);
-    nn::Buffer x(static_cast<std::size_t>(m * per));
-    for (std::size_t i = 0; i < x.size(); ++i)
-      x[i] = static_cast<float>(raw.data[i]) / 255.0f;
-    const Tensor codes =
-        estimator.codes(Tensor(Shape{m, config.cameras, side, side}, std::move(x)));
+    if (options.occlusion > 0) {
+      const Eigen::MatrixXd clean = to_matrix(estimator.codes(to_input(raw.data, m)));
+      if (y_clean.size() == 0)
+        y_clean.resize(n, clean.cols());
+      y_clean.middleRows(b, m) = clean;
+      occlude(raw.data, part, config.cameras, side, side, options.occlusion, options.occlusion_seed,
+              options.occluded_cameras);
+    }
+    for (std::int64_t i = 0; split_by_robot && i < m; ++i) {
+      std::vector<double> q(static_cast<std::size_t>(angle_width));
+      for (std::int64_t c = 0; c < angle_width; ++c) {
+        float a;
+        std::memcpy(&a, angle_rows.data.data() + ((b + i) * angle_width + c) * 4, 4);
+        q[static_cast<std::size_t>(c)] = a;
+      }
+      options.robot_masks(q, masks.data());
+      const std::size_t at = static_cast<std::size_t>(b + i);
+      for (std::int64_t c = 0; c < config.cameras; ++c)
+        robot[at] +=
+            std::count_if(masks.begin() + c * side * side, masks.begin() + (c + 1) * side * side,
+                          [](std::uint8_t v) { return v != 0; });
+      for (std::int64_t c : painted) {
+        const OcclusionSquare sq =
+            occlusion_square(options.occlusion_seed, part[static_cast<std::size_t>(i)], c, side,
+                             side, options.occlusion);
+        for (std::int64_t r = sq.y; r < sq.y + sq.size; ++r)
+          for (std::int64_t x = sq.x; x < sq.x + sq.size; ++x)
+            hidden[at] += masks[static_cast<std::size_t>((c * side + r) * side + x)] != 0;
+      }
+    }
+    const Tensor codes = estimator.codes(to_input(raw.data, m));
     const Eigen::MatrixXd yc = to_matrix(codes);
     if (y.size() == 0)
       y.resize(n, yc.cols());
@@ -364,6 +402,13 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
   ev.seed = options.seed;
   ev.occlusion = options.occlusion;
   ev.occlusion_seed = options.occlusion_seed;
+  if (options.occlusion > 0) {
+    ev.occluded_cameras = options.occluded_cameras;
+    const Eigen::RowVectorXd mean = y_clean.colwise().mean();
+    const double spread = (y_clean.rowwise() - mean).squaredNorm();
+    ev.code_shift = spread > 0 ? (y - y_clean).squaredNorm() / spread
+                               : std::numeric_limits<double>::quiet_NaN();
+  }
   // the PCA baseline: the leading principal components of AE1's code, fitted label-free on
   // the codes of the run's own training set (RUN/codes.npy), component k against joint k
   const Eigen::MatrixXd pca = pca_of_codes(run_dir / "codes.npy", y, jn);
@@ -403,6 +448,45 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
     }
     summarize(m);
     ev.methods.push_back(std::move(m));
+  }
+  // the occlusion diagnostic: the test samples whose squares hide robot pixels, and the rest
+  if (split_by_robot) {
+    OcclusionSplit sp;
+    double hiding = 0, share = 0;
+    for (std::size_t i = 0; i < hidden.size(); ++i) {
+      hiding += hidden[i] > 0;
+      share += robot[i] > 0 ? static_cast<double>(hidden[i]) / static_cast<double>(robot[i]) : 0;
+    }
+    sp.share_hiding = hiding / static_cast<double>(n);
+    sp.robot_hidden = share / static_cast<double>(n);
+    for (const auto& [name, latents] : sources) {
+      sp.methods.push_back(name);
+      for (const bool group : {true, false}) {
+        std::vector<double> sum(static_cast<std::size_t>(jn), 0.0), count(sum.size(), 0.0);
+        for (const ProtocolSplit& split : splits) {
+          std::vector<Eigen::Index> members;
+          for (Eigen::Index i : split.test)
+            if ((hidden[static_cast<std::size_t>(i)] > 0) == group)
+              members.push_back(i);
+          if (members.size() < 3)
+            continue;
+          for (Eigen::Index k = 0; k < jn; ++k) {
+            try {
+              sum[static_cast<std::size_t>(k)] +=
+                  std::fabs(pearson((*latents)(members, k).eval(), angles(members, k).eval()));
+              count[static_cast<std::size_t>(k)] += 1;
+            } catch (const std::invalid_argument&) {
+              // a constant latent in this group: left out of the mean
+            }
+          }
+        }
+        std::vector<double> mean(sum.size());
+        for (std::size_t k = 0; k < sum.size(); ++k)
+          mean[k] = count[k] > 0 ? sum[k] / count[k] : std::numeric_limits<double>::quiet_NaN();
+        (group ? sp.mcc_hiding : sp.mcc_missing).push_back(std::move(mean));
+      }
+    }
+    ev.occlusion_split = std::move(sp);
   }
   // the repeat the scatter plots show, as the paper's do: ROPES' highest mean MCC
   double best = -1;
@@ -461,6 +545,25 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
 
 nlohmann::json RunEvaluation::to_json() const {
   const auto nums = detail::numbers_or_null;
+  // null without an occlusion; code_shift, and the split when robot masks were given
+  auto occlusion_json = [&]() -> nlohmann::json {
+    if (occlusion <= 0)
+      return nullptr;
+    nlohmann::json j = {{"code_shift", nums({code_shift})[0]}, {"split", nullptr}};
+    if (occlusion_split) {
+      const OcclusionSplit& sp = *occlusion_split;
+      nlohmann::json hiding = nlohmann::json::object(), missing = nlohmann::json::object();
+      for (std::size_t m = 0; m < sp.methods.size(); ++m) {
+        hiding[sp.methods[m]] = nums(sp.mcc_hiding[m]);
+        missing[sp.methods[m]] = nums(sp.mcc_missing[m]);
+      }
+      j["split"] = {{"share_hiding_robot", sp.share_hiding},
+                    {"robot_hidden", sp.robot_hidden},
+                    {"mcc_hiding_robot", hiding},
+                    {"mcc_missing_robot", missing}};
+    }
+    return j;
+  };
   auto scores = [&](const MethodScores& m) {
     return nlohmann::json{{"mcc", nums(m.mcc)},
                           {"mse", nums(m.mse)},
@@ -499,8 +602,10 @@ nlohmann::json RunEvaluation::to_json() const {
             {"seed", seed},
             {"best_repeat", best_repeat},
             {"occlusion", occlusion},
-            {"occlusion_seed", occlusion_seed}}},
+            {"occlusion_seed", occlusion_seed},
+            {"occluded_cameras", occluded_cameras}}},
           {"methods", by_method},
+          {"occlusion_diagnostics", occlusion_json()},
           {"diagnostics",
            {{"probe_linear_mse", nums(probe_linear_mse)},
             {"probe_mlp_mse", nums(probe_mlp_mse)},

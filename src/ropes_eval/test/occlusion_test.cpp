@@ -95,6 +95,32 @@ TEST(Occlusion, PaintsExactlyTheSquareInEveryCameraImage) {
   EXPECT_TRUE(std::equal(one.begin(), one.end(), images.begin() + cameras * h * w));
 }
 
+// one camera occluded: its squares are where they are with every camera occluded, and the
+// other camera's images keep every byte
+TEST(Occlusion, OneCameraOccludedLeavesTheOtherAsItWas) {
+  const std::int64_t cameras = 2, h = 32, w = 32, size = 8;
+  const std::vector<std::int64_t> samples = {7, 11};
+  std::vector<std::uint8_t> before(samples.size() * cameras * h * w);
+  for (std::size_t i = 0; i < before.size(); ++i)
+    before[i] = static_cast<std::uint8_t>(i % 200);
+  std::vector<std::uint8_t> both = before, first = before;
+  occlude(both, samples, cameras, h, w, size, 9);
+  occlude(first, samples, cameras, h, w, size, 9, {0});
+  const std::size_t plane = static_cast<std::size_t>(h * w);
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    const std::size_t cam0 = (i * cameras) * plane, cam1 = cam0 + plane;
+    EXPECT_TRUE(
+        std::equal(first.begin() + cam0, first.begin() + cam0 + plane, both.begin() + cam0));
+    EXPECT_TRUE(
+        std::equal(first.begin() + cam1, first.begin() + cam1 + plane, before.begin() + cam1));
+    EXPECT_FALSE(
+        std::equal(both.begin() + cam1, both.begin() + cam1 + plane, before.begin() + cam1));
+  }
+  EXPECT_EQ(occluded_cameras(3, {}), (std::vector<std::int64_t>{0, 1, 2}));
+  expect_message([&] { occlude(first, samples, cameras, h, w, size, 9, {2}); },
+                 "camera 2 is asked to be occluded; expected a camera in [0, 2)");
+}
+
 TEST(Occlusion, RefusesSquaresThatDoNotFitAndMismatchedBuffers) {
   expect_message([] { occlusion_square(0, 0, 0, 32, 32, 33); }, "33 px in a 32x32 image");
   expect_message([] { occlusion_square(0, 0, 0, 32, 32, 0); }, "expected 1 <= size");

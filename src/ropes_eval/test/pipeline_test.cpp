@@ -641,8 +641,31 @@ TEST_F(Pipeline, SuitesGenerateTheirTestDataOnceAndReportEverySuite) {
   // the occluded suites see other latents: their MCC differs from the clean one's
   EXPECT_NE(r["suites"][0]["results"]["methods"]["ropes"]["mcc"],
             r["suites"][2]["results"]["methods"]["ropes"]["mcc"]);
+  // the occlusion diagnostics: AE1's code moves, more under the bigger square; the samples
+  // split by whether a square hides robot pixels (the share of the robot's pixels hidden is
+  // at most the share of samples that hide any, and grows with the square)
+  const nlohmann::json d8 = r["suites"][1]["results"]["occlusion_diagnostics"],
+                       d16 = r["suites"][2]["results"]["occlusion_diagnostics"];
+  EXPECT_TRUE(r["suites"][0]["results"]["occlusion_diagnostics"].is_null());
+  ASSERT_TRUE(d8.is_object() && d16.is_object()) << d8.dump() << d16.dump();
+  EXPECT_GT(d8["code_shift"].get<double>(), 0.0);
+  EXPECT_GT(d16["code_shift"].get<double>(), d8["code_shift"].get<double>());
+  for (const nlohmann::json* d : {&d8, &d16}) {
+    const nlohmann::json& sp = (*d)["split"];
+    ASSERT_TRUE(sp.is_object()) << d->dump();
+    EXPECT_GT(sp["share_hiding_robot"].get<double>(), 0.0);
+    EXPECT_LE(sp["robot_hidden"].get<double>(), sp["share_hiding_robot"].get<double>());
+    for (const char* group : {"mcc_hiding_robot", "mcc_missing_robot"})
+      EXPECT_EQ(sp[group]["ropes"].size(), 3u) << sp.dump();
+  }
+  EXPECT_GT(d16["split"]["robot_hidden"].get<double>(), d8["split"]["robot_hidden"].get<double>());
+  EXPECT_TRUE(r["occlusion_diagnostics"].empty()) << "one camera: no one-camera diagnostic";
   const std::string md = bytes_of(dir_ / "report1" / "results.md");
   EXPECT_NE(md.find("| id | 16 | tiny-1c |"), std::string::npos) << md;
+  EXPECT_NE(md.find("## Occlusion diagnostics: which stage breaks"), std::string::npos) << md;
+  EXPECT_NE(md.find("| id occlusion 16 | ldr_logit | squares hide robot pixels |"),
+            std::string::npos)
+      << md;
   EXPECT_NE(md.find("| labels a supervised encoder needs to match ROPES |"), std::string::npos)
       << md;
 
@@ -655,12 +678,29 @@ TEST_F(Pipeline, SuitesGenerateTheirTestDataOnceAndReportEverySuite) {
                         " --out " + run2c.string() + " --threads 2 --progress lines");
   ASSERT_EQ(t2.rc, 0) << t2.text;
   const Output ood = run(kEval + " --run " + run2c.string() + " --data-cache " + cache.string() +
-                         " --suite ood --probe-steps 0 --repeats 2 --calibration-samples 20"
-                         " --test-samples 20 --out " +
+                         " --suite id,ood,occlusion --occlusion-sizes 8 --probe-steps 0"
+                         " --repeats 2 --calibration-samples 20 --test-samples 20 --out " +
                          (dir_ / "report2c").string());
   ASSERT_EQ(ood.rc, 0) << ood.text;
   EXPECT_NE(ood.text.find("generating tiny-2c_ood (seed 1)"), std::string::npos) << ood.text;
+  // one camera occluded at a time, beside the suites: AE1 encodes each camera alone, so the
+  // code shift of both cameras occluded is the sum of the two one-camera shifts
+  const nlohmann::json r2 = json_of(dir_ / "report2c" / "results.json");
+  ASSERT_EQ(r2["occlusion_diagnostics"].size(), 2u) << r2.dump(1);
+  const nlohmann::json& one0 = r2["occlusion_diagnostics"][0];
+  EXPECT_EQ(one0["name"], "id occlusion 8, yaw45 only");
+  EXPECT_EQ(one0["results"]["protocol"]["occluded_cameras"], nlohmann::json::array({0}));
+  ASSERT_EQ(r2["suites"][1]["name"], "id occlusion 8");
+  const double both =
+      r2["suites"][1]["results"]["occlusion_diagnostics"]["code_shift"].get<double>();
+  const double c0 = one0["results"]["occlusion_diagnostics"]["code_shift"].get<double>(),
+               c1 = r2["occlusion_diagnostics"][1]["results"]["occlusion_diagnostics"]["code_shift"]
+                        .get<double>();
+  EXPECT_GT(c0, 0.0);
+  EXPECT_GT(c1, 0.0);
+  EXPECT_NEAR(both, c0 + c1, 1e-6 * both);
   const std::string md2 = bytes_of(dir_ / "report2c" / "results.md");
+  EXPECT_NE(md2.find("| id occlusion 8, yaw45 only | 0 |"), std::string::npos) << md2;
   EXPECT_NE(md2.find("| ood | -- | tiny-2c_ood |"), std::string::npos) << md2;
   EXPECT_NE(md2.find("| the paper | -- | | 0.084 | 0.017 | 0.239 | 0.048 | 0.199 | 0.120 |"),
             std::string::npos)

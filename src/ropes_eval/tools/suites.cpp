@@ -5,12 +5,15 @@
 #include <ropes_eval/screening.hpp>
 #include <ropes_eval/supervised.hpp>
 #include <ropes_nn/npy.hpp>
+#include <ropes_sim/dataset_config.hpp>
+#include <ropes_sim/rig_renderer.hpp>
 
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cstdlib>
 #include <fstream>
+#include <memory>
 #include <set>
 #include <sstream>
 
@@ -38,7 +41,7 @@ namespace {
 
 // run.json's image side and the training set's seed, each checked
 struct RunFacts {
-  std::int64_t image_side = 0;
+  std::int64_t image_side = 0, cameras = 1;
   std::uint64_t train_seed = 0;
   bool have_train_seed = false;
 };
@@ -58,6 +61,9 @@ RunFacts run_facts(const fs::path& run_dir) {
   const nlohmann::json::json_pointer side("/config/dataset/image_size");
   if (run.contains(side) && run[side].is_number_integer())
     f.image_side = run[side].get<std::int64_t>();
+  const nlohmann::json::json_pointer cameras("/config/dataset/cameras");
+  if (run.contains(cameras) && run[cameras].is_number_integer())
+    f.cameras = run[cameras].get<std::int64_t>();
   const fs::path manifest = fs::path(run.value("data_dir", "")) / "manifest.json";
   const nlohmann::json j =
       fs::is_regular_file(manifest, ec)
@@ -73,6 +79,44 @@ RunFacts run_facts(const fs::path& run_dir) {
     f.have_train_seed = true;
   }
   return f;
+}
+
+// The robot's silhouettes of a test set's samples, rendered with the rig of the config it was
+// made from: RunEvaluationOptions::robot_masks. Null, with the reason in `why`, for a test
+// set passed with --data (no config) or one whose angles columns are not the rig's joints.
+struct RobotMasks {
+  std::unique_ptr<ropes::sim::RigRenderer> rig;
+  std::vector<std::size_t> column_of_joint;  // the rig's joint i is the dataset's column
+  std::string why;
+};
+
+std::shared_ptr<RobotMasks> robot_masks_of(const TestData& test) {
+  auto out = std::make_shared<RobotMasks>();
+  if (test.config_file.empty()) {
+    out->why = "a test set passed with --data has no config to render the robot's silhouette";
+    return out;
+  }
+  const fs::path manifest = test.dir / "manifest.json";
+  const nlohmann::json j =
+      nlohmann::json::parse(nn::read_text_file(manifest, nn::kMaxJsonFileBytes), nullptr, false);
+  const nlohmann::json::json_pointer names("/metadata/joint_names");
+  if (!j.is_object() || !j.contains(names) || !j[names].is_array()) {
+    out->why = manifest.string() + " has no metadata.joint_names";
+    return out;
+  }
+  const std::vector<std::string> columns = j[names].get<std::vector<std::string>>();
+  auto rig =
+      std::make_unique<ropes::sim::RigRenderer>(ropes::sim::DatasetConfig::load(test.config_file));
+  for (const std::string& joint : rig->joint_names()) {
+    const auto at = std::find(columns.begin(), columns.end(), joint);
+    if (at == columns.end()) {
+      out->why = manifest.string() + ": the rig's joint " + joint + " is not an angles column";
+      return out;
+    }
+    out->column_of_joint.push_back(static_cast<std::size_t>(at - columns.begin()));
+  }
+  out->rig = std::move(rig);
+  return out;
 }
 
 }  // namespace
@@ -168,25 +212,65 @@ SuiteOutcome run_suites(const std::string& run_dir, const std::string& data, con
   for (const ropes::eval::SupervisedEncoder& e : supervised)
     options.supervised.push_back(&e);
 
+  // the one-camera diagnostic: Table 1's 32 px, else the middle size asked
+  std::int64_t one_camera_size = 0;
+  if (!occlusion_sizes.empty())
+    one_camera_size =
+        std::find(occlusion_sizes.begin(), occlusion_sizes.end(), 32) != occlusion_sizes.end()
+            ? 32
+            : occlusion_sizes[occlusion_sizes.size() / 2];
   for (const auto& [d, test] : tests) {
     std::vector<std::int64_t> sizes = {0};
     sizes.insert(sizes.end(), occlusion_sizes.begin(), occlusion_sizes.end());
-    for (std::int64_t size : sizes) {
+    // the robot's silhouettes split the occluded suites' samples (rendered on this thread)
+    std::shared_ptr<RobotMasks> masks;
+    if (!occlusion_sizes.empty()) {
+      masks = robot_masks_of(test);
+      if (!masks->rig) {
+        report.notes.push_back(d + " occlusion: no split by robot pixels: " + masks->why);
+        log(report.notes.back());
+      }
+    }
+    auto evaluate = [&, d = d, test = test](std::int64_t size, std::vector<std::int64_t> cameras,
+                                            const std::string& name) {
       ropes::eval::RunEvaluationOptions o = options;
       o.occlusion = size;
       o.occlusion_seed = options.seed;
+      o.occluded_cameras = std::move(cameras);
+      if (size > 0 && masks && masks->rig)
+        o.robot_masks = [m = masks](const std::vector<double>& angles, std::uint8_t* silhouettes) {
+          std::vector<double> q;
+          for (std::size_t c : m->column_of_joint)
+            q.push_back(angles.at(c));
+          m->rig->robot_masks(q, silhouettes);
+        };
       // the diagnostics' MLP probe: on the clean id suite only
       if (!(d == "id" && size == 0))
         o.probe_steps = 0;
       ropes::eval::SuiteResult s;
-      s.name = d + (size > 0 ? " occlusion " + std::to_string(size) : "");
+      s.name = name;
       s.distribution = d;
       s.occlusion = size;
       s.data_config = test.config_name;
       log("evaluating " + s.name);
       s.evaluation = ropes::eval::evaluate_run(run_dir, test.dir, o);
-      report.suites.push_back(std::move(s));
-    }
+      return s;
+    };
+    for (std::int64_t size : sizes)
+      report.suites.push_back(
+          evaluate(size, {}, d + (size > 0 ? " occlusion " + std::to_string(size) : "")));
+    // with two cameras or more, the id suite again with the squares in one camera only: does
+    // the clean view carry the pose?
+    std::vector<std::string> cameras;
+    if (masks && masks->rig)
+      cameras = masks->rig->camera_names();
+    for (std::int64_t c = static_cast<std::int64_t>(cameras.size()); c < facts.cameras; ++c)
+      cameras.push_back("camera " + std::to_string(c));
+    if (d == "id" && one_camera_size > 0 && cameras.size() > 1)
+      for (std::size_t c = 0; c < cameras.size(); ++c)
+        report.occlusion_diagnostics.push_back(evaluate(
+            one_camera_size, {static_cast<std::int64_t>(c)},
+            "id occlusion " + std::to_string(one_camera_size) + ", " + cameras[c] + " only"));
   }
   // AE1's information bound beside the suites: what its code holds of each joint (it needs
   // the training set, which a run evaluated on a --data test set may no longer have)

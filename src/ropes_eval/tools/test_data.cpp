@@ -114,6 +114,7 @@ TestData ensure_test_data(const TestDataRequest& request) {
   const std::string key = nn::sha256_hex(identity.data(), identity.size()).substr(0, 12);
   TestData out;
   out.config_name = name;
+  out.config_file = file;
   out.dir = request.cache / (name + "-seed" + std::to_string(request.seed) + "-" + key);
   sim::GenerateOptions options;
   options.out = out.dir;

@@ -28,8 +28,9 @@ struct TestDataRequest {
 
 struct TestData {
   std::filesystem::path dir;
-  std::string config_name;          // e.g. small-2c_ood
-  std::int64_t shards_written = 0;  // by this call (0: the cache had it)
+  std::string config_name;            // e.g. small-2c_ood
+  std::filesystem::path config_file;  // the dataset config it was made from (empty: --data)
+  std::int64_t shards_written = 0;    // by this call (0: the cache had it)
 };
 
 /// The dataset config a suite uses for a run trained on `train_config` (e.g. small-2c):

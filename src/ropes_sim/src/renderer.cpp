@@ -7,6 +7,8 @@
 #include <GL/glext.h>
 
 #include <malloc.h>
+
+#include <algorithm>
 #include <thread>
 
 namespace ropes::sim {
@@ -348,19 +350,24 @@ std::vector<std::uint8_t> Renderer::render(const std::vector<Eigen::Isometry3d>&
 }
 
 int Renderer::robot_pixels(const std::vector<Eigen::Isometry3d>& X_BL, const Camera& camera) {
+  std::vector<std::uint8_t> mask(static_cast<std::size_t>(width_) * height_);
+  robot_mask(X_BL, camera, mask.data());
+  return static_cast<int>(std::count(mask.begin(), mask.end(), std::uint8_t{255}));
+}
+
+void Renderer::robot_mask(const std::vector<Eigen::Isometry3d>& X_BL, const Camera& camera,
+                          std::uint8_t* mask) {
   if (X_BL.size() != impl_->scene->model().links().size())
-    throw std::invalid_argument("Renderer::robot_pixels: " + std::to_string(X_BL.size()) +
+    throw std::invalid_argument("Renderer::robot_mask: " + std::to_string(X_BL.size()) +
                                 " link poses, expected " +
                                 std::to_string(impl_->scene->model().links().size()));
   camera.check();
-  impl_->check_thread("robot_pixels");
+  impl_->check_thread("robot_mask");
   impl_->make_current(width_, height_);
   impl_->draw(X_BL, camera, width_, height_, true);
-  int count = 0;
   const std::size_t n = static_cast<std::size_t>(width_) * height_;
   for (std::size_t i = 0; i < n; ++i)
-    count += impl_->rgba[4 * i] > 127;
-  return count;
+    mask[i] = impl_->rgba[4 * i] > 127 ? 255 : 0;
 }
 
 std::string Renderer::gl_description() const {

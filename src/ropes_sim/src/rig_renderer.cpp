@@ -68,4 +68,17 @@ void RigRenderer::render(const std::vector<double>& q, std::uint8_t* pixels) {
     s.renderer.render(X_BL, s.config.rig.cameras[c], pixels + c * image);
 }
 
+void RigRenderer::robot_masks(const std::vector<double>& q, std::uint8_t* mask) {
+  Impl& s = *impl_;
+  if (q.size() != s.setup.coordinate_of_joint.size())
+    throw std::invalid_argument("RigRenderer::robot_masks: " + std::to_string(q.size()) +
+                                " angles for " +
+                                std::to_string(s.setup.coordinate_of_joint.size()) + " joints");
+  s.kinematics.set_positions(s.setup.coordinates(q));
+  const auto X_BL = s.kinematics.link_poses();
+  const std::size_t image = static_cast<std::size_t>(width()) * static_cast<std::size_t>(height());
+  for (std::size_t c = 0; c < s.config.rig.cameras.size(); ++c)
+    s.renderer.robot_mask(X_BL, s.config.rig.cameras[c], mask + c * image);
+}
+
 }  // namespace ropes::sim

@@ -142,6 +142,20 @@ TEST(Renderer, ACameraLookingAwaySeesNoRobot) {
   away.target = Eigen::Vector3d(5, 5, 0);
   away.yaw_deg = 45;  // looking away from the robot
   EXPECT_EQ(r.robot_pixels(X_BL, away), 0);
+  // the silhouette: 0 or 255, as many 255s as robot_pixels counts, and where the robot is
+  // drawn the picture is not the white background (the table is 242, the robot darker)
+  const Camera front = CameraRig::single_camera().cameras[0];
+  std::vector<std::uint8_t> mask(64 * 64);
+  r.robot_mask(X_BL, front, mask.data());
+  const std::vector<std::uint8_t> picture = r.render(X_BL, front);
+  int on = 0, white = 0;
+  for (std::size_t i = 0; i < mask.size(); ++i) {
+    EXPECT_TRUE(mask[i] == 0 || mask[i] == 255) << int(mask[i]);
+    on += mask[i] == 255;
+    white += mask[i] == 255 && picture[i] == 255;
+  }
+  EXPECT_EQ(on, r.robot_pixels(X_BL, front));
+  EXPECT_LT(white, on / 20);
   EXPECT_THROW(r.render({}, away), std::invalid_argument);
   // its context is current on this thread: another thread is refused, not undefined behaviour
   std::string refused;

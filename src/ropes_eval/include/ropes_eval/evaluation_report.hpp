@@ -34,8 +34,21 @@ struct SupervisedInfo {
   double final_loss = 0;
 };
 
+/// One row of the occlusion diagnostics (results.md, report.html): a method's MCC per joint
+/// (the suite's joints) on an occluded suite's test samples, all of them or one group of
+/// OcclusionSplit.
+struct OcclusionDiagnosticRow {
+  std::string suite, method;
+  std::string samples;  ///< "all", "squares hide robot pixels" or "squares miss the robot"
+  std::vector<double> mcc;
+};
+
 struct EvaluationReport {
   std::vector<SuiteResult> suites;
+  /// Occluded suites that are diagnostics, not the paper's test, kept out of the suites'
+  /// tables: with two cameras, the id test set with the squares in one camera only
+  /// (RunEvaluationOptions::occluded_cameras), named e.g. "id occlusion 32, cam0 only".
+  std::vector<SuiteResult> occlusion_diagnostics;
   /// the supervised baselines, scored on every suite as methods "supervised_<p>%"
   std::vector<SupervisedInfo> supervised;
   /// the paper's RoboPEPP MSE by training-set fraction (paper_results.json "robopepp")
@@ -51,8 +64,8 @@ struct EvaluationReport {
 
   /// results.json: {"format": "ropes-eval-report", "format_version": 1, "run", "config",
   /// "setting", "suites": [{"name", "distribution", "occlusion", "data_config", "results":
-  /// RunEvaluation::to_json()}], "notes", "paper_appendix", "screen": Screening::to_json()
-  /// (when screened)}.
+  /// RunEvaluation::to_json()}], "occlusion_diagnostics": [the same for those suites],
+  /// "notes", "paper_appendix", "screen": Screening::to_json() (when screened)}.
   nlohmann::json to_json() const;
   /// results.md: the id suite's RunEvaluation::markdown(), the suites' MSE and MCC in the
   /// layout of the paper's appendix table, the baselines on every suite, and the label
@@ -64,6 +77,15 @@ struct EvaluationReport {
   std::string table() const;
   /// The suite named `name`, or nullptr.
   const SuiteResult* find(const std::string& name) const;
+  /// Every occluded suite (the paper's, then the diagnostics) and, per suite, the methods
+  /// that tell the stages apart — ropes, ldr_logit (AE1 + LDR, no AE2), lambda0_autoencoder
+  /// and the supervised encoder with every label (AE1's code alone) — on all test samples
+  /// and, where the suite has OcclusionSplit, on each group.
+  std::vector<OcclusionDiagnosticRow> occlusion_rows() const;
+  /// The occluded suites' summaries as a markdown section ("" without an occluded suite):
+  /// AE1's code shift, the share of samples whose squares hide the robot, and
+  /// occlusion_rows().
+  std::string occlusion_markdown() const;
 };
 
 /// The paper's appendix numbers for `setting` from paper_results.json (empty: the installed

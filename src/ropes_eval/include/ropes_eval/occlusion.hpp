@@ -26,10 +26,18 @@ OcclusionSquare occlusion_square(std::uint64_t seed, std::int64_t sample, std::i
 
 /// Paints the squares into `images`, u8 [samples.size(), cameras, height, width] (row-major,
 /// the dataset's layout): every pixel of each camera's square becomes 255. `samples[i]` is
-/// the dataset row of image block i. Throws std::invalid_argument as occlusion_square does,
-/// or when images.size() is not samples.size() * cameras * height * width.
+/// the dataset row of image block i. `only_cameras` empty (the paper's test): every camera's
+/// image; otherwise only these cameras' (a diagnostic: one camera occluded, the other
+/// clean), the squares where they would be with every camera occluded. Throws
+/// std::invalid_argument as occlusion_square does, when images.size() is not samples.size() *
+/// cameras * height * width, or when a camera of `only_cameras` is not in [0, cameras).
 void occlude(std::vector<std::uint8_t>& images, const std::vector<std::int64_t>& samples,
              std::int64_t cameras, std::int64_t height, std::int64_t width, std::int64_t size,
-             std::uint64_t seed);
+             std::uint64_t seed, const std::vector<std::int64_t>& only_cameras = {});
+
+/// The cameras `occlude` paints for `only_cameras`: [0, cameras) when it is empty, else it,
+/// checked as occlude checks it.
+std::vector<std::int64_t> occluded_cameras(std::int64_t cameras,
+                                           const std::vector<std::int64_t>& only_cameras);
 
 }  // namespace ropes::eval

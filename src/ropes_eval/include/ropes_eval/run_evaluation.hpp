@@ -20,6 +20,9 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
+#include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -37,6 +40,15 @@ struct RunEvaluationOptions {
   /// of every sample before it is encoded (occlusion.hpp); 0: none.
   std::int64_t occlusion = 0;
   std::uint64_t occlusion_seed = 0;  ///< where the squares go (occlusion_square)
+  /// With an occlusion, the cameras whose images get the square; empty (the paper's test):
+  /// every camera. One camera of two is a diagnostic: does the clean view carry the pose?
+  std::vector<std::int64_t> occluded_cameras;
+  /// With an occlusion, optional: each camera's robot silhouette for one dataset row, from
+  /// its angles (every column of the dataset's `angles`, in its metadata.joint_names order),
+  /// into `masks` ([cameras, side, side] bytes, nonzero on the robot). When given, the test
+  /// samples are split by whether a square hides robot pixels (RunEvaluation::occlusion_split).
+  /// ropes-eval's suites render it with the test set's own rig.
+  std::function<void(const std::vector<double>& angles, std::uint8_t* masks)> robot_masks;
   /// Supervised baselines (supervised.hpp), scored as methods named "supervised_<p>%" (p:
   /// the percentage of labelled training samples); their latents are their angle estimates,
   /// and their "mse" is the estimate's own error (no calibration). Not owned.
@@ -67,6 +79,18 @@ struct MethodSummary {
   MethodScores mean, std;
 };
 
+/// The occlusion diagnostic of robot_masks: each test sample is in one of two groups, its
+/// squares hiding at least one robot pixel (in any occluded camera) or none; per method
+/// (RunEvaluation::methods' order) and joint, |Pearson| of latent k and joint k on each
+/// group's test samples, the mean over the repeats (a repeat whose group has fewer than 3
+/// samples or a constant latent there is left out; NaN when every repeat is).
+struct OcclusionSplit {
+  double share_hiding = 0;  ///< of the observational samples, those whose squares hide the robot
+  double robot_hidden = 0;  ///< mean share of a sample's robot pixels the squares hide
+  std::vector<std::string> methods;
+  std::vector<std::vector<double>> mcc_hiding, mcc_missing;  ///< [method][joint]
+};
+
 struct RunEvaluation {
   std::string run_dir, data_dir, config_name, setting, dataset_id, train_dataset_id;
   std::vector<std::string> joints;
@@ -74,8 +98,14 @@ struct RunEvaluation {
   std::uint64_t seed = 0;
   std::int64_t occlusion = 0;  ///< the square's side in pixels (0: none)
   std::uint64_t occlusion_seed = 0;
-  std::vector<MethodSummary> methods;  ///< "ropes" first, then the baselines
-  std::int64_t best_repeat = 0;        ///< the repeat of ROPES' highest mean MCC (for plots)
+  std::vector<std::int64_t> occluded_cameras;  ///< with an occlusion; empty: every camera
+  /// With an occlusion: how far the squares move AE1's code, E|Y_occluded - Y_clean|^2 /
+  /// E|Y_clean - mean(Y_clean)|^2 over the observational samples (0: the code does not move;
+  /// 1: it moves as far as a clean code lies from the mean code). NaN without an occlusion.
+  double code_shift = std::numeric_limits<double>::quiet_NaN();
+  std::optional<OcclusionSplit> occlusion_split;  ///< with an occlusion and robot_masks
+  std::vector<MethodSummary> methods;             ///< "ropes" first, then the baselines
+  std::int64_t best_repeat = 0;  ///< the repeat of ROPES' highest mean MCC (for plots)
   /// ROPES on the best repeat's test samples, for the scatter plots: per joint k, latent k,
   /// joint k estimated by that repeat's affine calibration, and the true angle (radians)
   std::vector<std::vector<double>> scatter_latent, scatter_estimate, scatter_truth;

@@ -51,6 +51,11 @@ class Renderer {
   /// The number of pixels the robot covers in `camera`'s image (the robot alone, nothing
   /// hiding it): a check that a camera looks at the robot.
   int robot_pixels(const std::vector<Eigen::Isometry3d>& X_BL, const Camera& camera);
+  /// The robot's silhouette in `camera`'s image (the robot alone, nothing hiding it) into
+  /// `mask`: width * height bytes, 255 where the robot is, 0 elsewhere; robot_pixels counts
+  /// its 255s. Throws as render does.
+  void robot_mask(const std::vector<Eigen::Isometry3d>& X_BL, const Camera& camera,
+                  std::uint8_t* mask);
 
   /// GL_RENDERER and GL_VERSION of the context, e.g. "llvmpipe (LLVM 15.0.6, 256 bits) |
   /// 4.5 (Compatibility Profile) Mesa 22.3.6": golden images are exact for one of these.

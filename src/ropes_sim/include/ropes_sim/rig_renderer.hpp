@@ -36,6 +36,9 @@ class RigRenderer {
   /// Renders every camera for angles `q` (one per joint_names()) into `pixels`
   /// (frame_bytes() bytes). Throws std::invalid_argument for a wrong count.
   void render(const std::vector<double>& q, std::uint8_t* pixels);
+  /// Each camera's robot silhouette for angles `q` (Renderer::robot_mask: 255 on the robot,
+  /// 0 elsewhere, nothing hiding it) into `mask`, laid out as render's pixels.
+  void robot_masks(const std::vector<double>& q, std::uint8_t* mask);
 
  private:
   struct Impl;
