@@ -31,7 +31,8 @@ options:
   --threads T        compute threads (default 1); a resumed run must use the same T
   --seed S           the run's seed (default 0)
   --set KEY=VALUE    override a config value, KEY a dotted path (ae2.lambda=10,
-                     ae2.latent_dim=12), VALUE JSON; repeatable
+                     ae2.latent_dim=12), VALUE JSON; repeatable; an optional key the
+                     config leaves out may be set too (ae1.code_head=linear)
   --sweep-lambda L   comma-separated lambdas: one run per lambda and seed, in
                      RUN/lambda-<L>_seed-<S>
   --sweep-seeds S    comma-separated seeds for the sweep (default: --seed)
@@ -70,7 +71,32 @@ std::vector<std::string> split(const std::string& s) {
   return out;
 }
 
-// KEY=VALUE into the config's JSON; the key must exist (a misspelt key is an error)
+// whether the config, without `key` (a dotted path whose parent is an object), would read it:
+// with the key added it is not refused as an unknown key
+bool optional_key_of(const nlohmann::json& config, const std::string& key) {
+  nlohmann::json trial = config;
+  nlohmann::json* at = &trial;
+  std::size_t start = 0;
+  for (std::size_t dot = key.find('.'); dot != std::string::npos; dot = key.find('.', start)) {
+    const std::string part = key.substr(start, dot - start);
+    if (!at->is_object() || !at->contains(part))
+      return false;
+    at = &(*at)[part];
+    start = dot + 1;
+  }
+  if (!at->is_object())
+    return false;
+  (*at)[key.substr(start)] = nullptr;
+  try {
+    ropes::crl::ExperimentConfig::from_json(trial, "--set");
+  } catch (const std::exception& e) {
+    return std::string(e.what()).find("config." + key + ": unknown key") == std::string::npos;
+  }
+  return true;
+}
+
+// KEY=VALUE into the config's JSON; the key must exist, or be an optional key the config
+// reads (ae1.code_head, ldr.input_normalization, ...): a misspelt key is an error
 void apply_override(nlohmann::json& config, const std::string& assignment) {
   const std::size_t eq = assignment.find('=');
   if (eq == std::string::npos || eq == 0)
@@ -85,10 +111,11 @@ void apply_override(nlohmann::json& config, const std::string& assignment) {
     const std::size_t dot = key.find('.', start);
     const std::string part =
         key.substr(start, dot == std::string::npos ? std::string::npos : dot - start);
-    if (!at->is_object() || !at->contains(part))
+    const bool last = dot == std::string::npos;
+    if (!at->is_object() || (!at->contains(part) && !(last && optional_key_of(config, key))))
       throw UsageError("--set " + key + ": the config has no '" + part + "' there");
     at = &(*at)[part];
-    if (dot == std::string::npos)
+    if (last)
       break;
     start = dot + 1;
   }

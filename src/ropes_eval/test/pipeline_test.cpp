@@ -346,6 +346,14 @@ TEST_F(Pipeline, BadInputIsRefusedClearly) {
   EXPECT_NE(o.text.find("--set ae2.lambada: the config has no 'lambada' there"), std::string::npos)
       << o.text;
   EXPECT_FALSE(fs::exists(dir_ / "misspelt"));
+  // an optional key the config lacks is set, and its value checked
+  o = train((dir_ / "optional").string(), "--set ae1.code_head=tanh");
+  EXPECT_NE(o.rc, 0);
+  EXPECT_NE(o.text.find("config.ae1.code_head: expected \"conv_relu\", \"linear\" or "
+                        "\"resblock_linear\", got \"tanh\""),
+            std::string::npos)
+      << o.text;
+  EXPECT_FALSE(fs::exists(dir_ / "optional"));
 
   // a loss that is not finite: the stage and step are named, the checkpoint is kept. At
   // --threads 2 the AE2s of joints 2 and 4 train side by side and both diverge; the first to

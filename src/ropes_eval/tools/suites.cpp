@@ -4,6 +4,7 @@
 #include <ropes_eval/html_report.hpp>
 #include <ropes_eval/screening.hpp>
 #include <ropes_eval/supervised.hpp>
+#include <ropes_nn/dataset.hpp>
 #include <ropes_nn/npy.hpp>
 #include <ropes_sim/dataset_config.hpp>
 #include <ropes_sim/rig_renderer.hpp>
@@ -114,6 +115,13 @@ std::shared_ptr<RobotMasks> robot_masks_of(const TestData& test) {
       return out;
     }
     out->column_of_joint.push_back(static_cast<std::size_t>(at - columns.begin()));
+  }
+  // the silhouettes are laid out as the test set's images: the same cameras and size
+  const std::vector<std::int64_t> shape =
+      nn::DatasetReader::open(test.dir).column("images").row_shape;
+  if (shape != std::vector<std::int64_t>{rig->cameras(), rig->height(), rig->width()}) {
+    out->why = manifest.string() + ": its images are not the rig's cameras and size";
+    return out;
   }
   out->rig = std::move(rig);
   return out;
