@@ -2,6 +2,7 @@
 #include "ropes_sim/rig_renderer.hpp"
 
 #include <stdexcept>
+#include <string>
 
 #include "dataset_setup.hpp"
 #include "ropes_sim/kinematics.hpp"
@@ -24,6 +25,24 @@ struct RigRenderer::Impl {
         scene(Scene::build(setup.model)),
         kinematics(setup.model),
         renderer(scene, c.rig.width, c.rig.height) {}
+
+  // poses the robot at q (one angle per joint, checked) and calls draw(renderer, link poses,
+  // camera, out) for each camera, out being that camera's width x height bytes of `frame`;
+  // render and robot_masks differ only in what they draw
+  template <typename Draw>
+  void for_each_camera(const std::vector<double>& q, const char* caller, std::uint8_t* frame,
+                       Draw draw) {
+    if (q.size() != setup.coordinate_of_joint.size())
+      throw std::invalid_argument(std::string("RigRenderer::") + caller + ": " +
+                                  std::to_string(q.size()) + " angles for " +
+                                  std::to_string(setup.coordinate_of_joint.size()) + " joints");
+    kinematics.set_positions(setup.coordinates(q));
+    const auto X_BL = kinematics.link_poses();
+    const std::size_t image =
+        static_cast<std::size_t>(config.rig.width) * static_cast<std::size_t>(config.rig.height);
+    for (std::size_t c = 0; c < config.rig.cameras.size(); ++c)
+      draw(renderer, X_BL, config.rig.cameras[c], frame + c * image);
+  }
 };
 
 RigRenderer::RigRenderer(const DatasetConfig& config) : impl_(std::make_unique<Impl>(config)) {}
@@ -56,29 +75,15 @@ std::size_t RigRenderer::frame_bytes() const {
 }
 
 void RigRenderer::render(const std::vector<double>& q, std::uint8_t* pixels) {
-  Impl& s = *impl_;
-  if (q.size() != s.setup.coordinate_of_joint.size())
-    throw std::invalid_argument("RigRenderer::render: " + std::to_string(q.size()) +
-                                " angles for " +
-                                std::to_string(s.setup.coordinate_of_joint.size()) + " joints");
-  s.kinematics.set_positions(s.setup.coordinates(q));
-  const auto X_BL = s.kinematics.link_poses();
-  const std::size_t image = static_cast<std::size_t>(width()) * static_cast<std::size_t>(height());
-  for (std::size_t c = 0; c < s.config.rig.cameras.size(); ++c)
-    s.renderer.render(X_BL, s.config.rig.cameras[c], pixels + c * image);
+  impl_->for_each_camera(q, "render", pixels,
+                         [](Renderer& r, const auto& X_BL, const Camera& camera,
+                            std::uint8_t* out) { r.render(X_BL, camera, out); });
 }
 
 void RigRenderer::robot_masks(const std::vector<double>& q, std::uint8_t* mask) {
-  Impl& s = *impl_;
-  if (q.size() != s.setup.coordinate_of_joint.size())
-    throw std::invalid_argument("RigRenderer::robot_masks: " + std::to_string(q.size()) +
-                                " angles for " +
-                                std::to_string(s.setup.coordinate_of_joint.size()) + " joints");
-  s.kinematics.set_positions(s.setup.coordinates(q));
-  const auto X_BL = s.kinematics.link_poses();
-  const std::size_t image = static_cast<std::size_t>(width()) * static_cast<std::size_t>(height());
-  for (std::size_t c = 0; c < s.config.rig.cameras.size(); ++c)
-    s.renderer.robot_mask(X_BL, s.config.rig.cameras[c], mask + c * image);
+  impl_->for_each_camera(q, "robot_masks", mask,
+                         [](Renderer& r, const auto& X_BL, const Camera& camera,
+                            std::uint8_t* out) { r.robot_mask(X_BL, camera, out); });
 }
 
 }  // namespace ropes::sim
