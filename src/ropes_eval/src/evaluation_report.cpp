@@ -153,6 +153,27 @@ std::vector<OcclusionDiagnosticRow> EvaluationReport::occlusion_rows() const {
   return rows;
 }
 
+std::vector<OcclusionSummary> EvaluationReport::occlusion_summaries() const {
+  std::vector<OcclusionSummary> out;
+  for (const std::vector<SuiteResult>* list : {&suites, &occlusion_diagnostics})
+    for (const SuiteResult& s : *list) {
+      if (s.occlusion <= 0)
+        continue;
+      const RunEvaluation& ev = s.evaluation;
+      OcclusionSummary row{s.name, "", ev.code_shift, std::nullopt, std::nullopt};
+      for (std::int64_t c : ev.occluded_cameras)
+        row.cameras += (row.cameras.empty() ? "" : ", ") + std::to_string(c);
+      if (row.cameras.empty())
+        row.cameras = "all";
+      if (ev.occlusion_split) {
+        row.share_hiding = ev.occlusion_split->share_hiding;
+        row.robot_hidden = ev.occlusion_split->robot_hidden;
+      }
+      out.push_back(std::move(row));
+    }
+  return out;
+}
+
 std::string EvaluationReport::occlusion_markdown() const {
   const std::vector<OcclusionDiagnosticRow> rows = occlusion_rows();
   if (rows.empty())
@@ -166,18 +187,9 @@ std::string EvaluationReport::occlusion_markdown() const {
          "share of the robot's pixels covered.\n\n"
          "| suite | occluded cameras | AE1 code shift | samples whose squares hide the robot | "
          "robot pixels hidden |\n| --- | --- | --- | --- | --- |\n";
-  for (const std::vector<SuiteResult>* list : {&suites, &occlusion_diagnostics})
-    for (const SuiteResult& s : *list) {
-      if (s.occlusion <= 0)
-        continue;
-      const RunEvaluation& ev = s.evaluation;
-      std::string cams;
-      for (std::int64_t c : ev.occluded_cameras)
-        cams += (cams.empty() ? "" : ", ") + std::to_string(c);
-      out << "| " << s.name << " | " << (cams.empty() ? "all" : cams) << " | " << fmt(ev.code_shift)
-          << " | " << (ev.occlusion_split ? fmt(ev.occlusion_split->share_hiding) : "--") << " | "
-          << (ev.occlusion_split ? fmt(ev.occlusion_split->robot_hidden) : "--") << " |\n";
-    }
+  for (const OcclusionSummary& r : occlusion_summaries())
+    out << "| " << r.suite << " | " << r.cameras << " | " << fmt(r.code_shift) << " | "
+        << fmt(r.share_hiding) << " | " << fmt(r.robot_hidden) << " |\n";
   out << "\nMCC per joint (mean over the repeats) of the methods that tell the stages apart: "
          "ropes (AE1, LDRs, AE2), ldr_logit (AE1 and the LDRs, no AE2), lambda0_autoencoder "
          "(AE2 without the sparsity term) and supervised_100% (an encoder fitted with every "

@@ -480,19 +480,10 @@ std::string html_report(const EvaluationReport& report, const fs::path& run_dir,
          "share of the robot's pixels covered.</p>\n<table class=\"occlusion-diagnostics\">"
          "<tr><th>suite</th><th>occluded cameras</th><th>AE1 code shift</th><th>samples whose "
          "squares hide the robot</th><th>robot pixels hidden</th></tr>\n";
-    for (const std::vector<SuiteResult>* list : {&report.suites, &report.occlusion_diagnostics})
-      for (const SuiteResult& s : *list) {
-        if (s.occlusion <= 0)
-          continue;
-        const RunEvaluation& ev = s.evaluation;
-        std::string cams;
-        for (std::int64_t c : ev.occluded_cameras)
-          cams += (cams.empty() ? "" : ", ") + std::to_string(c);
-        h << "<tr><td>" << escape(s.name) << "</td><td>" << (cams.empty() ? "all" : cams)
-          << "</td><td>" << fmt(ev.code_shift) << "</td><td>"
-          << (ev.occlusion_split ? fmt(ev.occlusion_split->share_hiding) : "--") << "</td><td>"
-          << (ev.occlusion_split ? fmt(ev.occlusion_split->robot_hidden) : "--") << "</td></tr>\n";
-      }
+    for (const OcclusionSummary& r : report.occlusion_summaries())
+      h << "<tr><td>" << escape(r.suite) << "</td><td>" << escape(r.cameras) << "</td><td>"
+        << fmt(r.code_shift) << "</td><td>" << fmt(r.share_hiding) << "</td><td>"
+        << fmt(r.robot_hidden) << "</td></tr>\n";
     h << "</table>\n<p>MCC per joint: ropes (AE1, LDRs, AE2), ldr_logit (no AE2), "
          "lambda0_autoencoder (no sparsity term) and supervised_100% (every label, clean codes: "
          "what AE1's code still holds). Where ldr_logit holds and ropes falls, AE2 is fragile; "

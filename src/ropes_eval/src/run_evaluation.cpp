@@ -301,6 +301,11 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
     throw std::invalid_argument("the occlusion square is " + std::to_string(options.occlusion) +
                                 " px; expected 0 (none) to the image's side, " +
                                 std::to_string(config.image_size));
+  if (options.occlusion == 0 && !options.occluded_cameras.empty())
+    throw std::invalid_argument(
+        "occluded_cameras names " + std::to_string(options.occluded_cameras.size()) +
+        " camera(s) but the occlusion square is 0 px; expected an occlusion to place, or no "
+        "occluded_cameras");
   const std::int64_t wanted = options.calibration_samples + options.test_samples;
   if (options.repeats < 1 || options.calibration_samples < 2 || options.test_samples < 2)
     throw std::invalid_argument("the protocol asks for " + std::to_string(options.repeats) +
@@ -323,14 +328,33 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
   const std::int64_t n = static_cast<std::int64_t>(rows.size()),
                      jn = static_cast<std::int64_t>(config.joints.size());
   const std::int64_t side = config.image_size, per = config.cameras * side * side;
-  Eigen::MatrixXd z(n, jn), z0(n, jn), logit(n, jn), angles(n, jn), y, y_clean;
+  Eigen::MatrixXd z(n, jn), z0(n, jn), logit(n, jn), angles(n, jn), y;
+  // the clean codes and silhouettes: this evaluation's own, or those a suite before it left
+  EvaluationCache own;
+  EvaluationCache& cache = options.cache ? *options.cache : own;
+  if (!cache.run_dir.empty() && (cache.run_dir != run_dir || cache.data_dir != data_dir))
+    throw std::invalid_argument("the evaluation cache holds run " + cache.run_dir.string() +
+                                " on " + cache.data_dir.string() + "; this evaluation is run " +
+                                run_dir.string() + " on " + data_dir.string() +
+                                ": expected one cache per run and test set");
+  cache.run_dir = run_dir;
+  cache.data_dir = data_dir;
+  const bool cached_codes = cache.clean_codes.rows() == n;
+  if (options.occlusion > 0 && !cached_codes)
+    cache.clean_codes.resize(0, 0);
+  Eigen::MatrixXd& y_clean = cache.clean_codes;
   const nn::NpyArray angle_rows = reader.read_rows_at("angles", rows);
   const std::int64_t angle_width = reader.column("angles").row_shape[0];
   // with robot_masks: per sample, robot pixels the squares hide and robot pixels in all
   const bool split_by_robot = options.occlusion > 0 && options.robot_masks != nullptr;
-  std::vector<std::int64_t> hidden(split_by_robot ? static_cast<std::size_t>(n) : 0),
-      robot(hidden.size());
-  std::vector<std::uint8_t> masks(split_by_robot ? static_cast<std::size_t>(per) : 0);
+  const bool cached_masks = static_cast<std::int64_t>(cache.silhouettes.size()) == n;
+  if (split_by_robot && !cached_masks) {
+    cache.robot_pixels.assign(static_cast<std::size_t>(n), 0);
+    cache.silhouettes.assign(static_cast<std::size_t>(n), {});
+  }
+  std::vector<std::int64_t> hidden(split_by_robot ? static_cast<std::size_t>(n) : 0);
+  std::vector<std::uint8_t> masks(split_by_robot && !cached_masks ? static_cast<std::size_t>(per)
+                                                                  : 0);
   auto to_input = [&](const std::vector<std::uint8_t>& bytes, std::int64_t m) {
     nn::Buffer x(static_cast<std::size_t>(m * per));
     for (std::size_t i = 0; i < x.size(); ++i)
@@ -342,33 +366,38 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
     const std::vector<std::int64_t> part(rows.begin() + b, rows.begin() + b + m);
     nn::NpyArray raw = reader.read_rows_at("images", part);
     if (options.occlusion > 0) {
-      const Eigen::MatrixXd clean = to_matrix(estimator.codes(to_input(raw.data, m)));
-      if (y_clean.size() == 0)
-        y_clean.resize(n, clean.cols());
-      y_clean.middleRows(b, m) = clean;
+      if (!cached_codes) {
+        const Eigen::MatrixXd clean = to_matrix(estimator.codes(to_input(raw.data, m)));
+        if (y_clean.size() == 0)
+          y_clean.resize(n, clean.cols());
+        y_clean.middleRows(b, m) = clean;
+      }
       occlude(raw.data, part, config.cameras, side, side, options.occlusion, options.occlusion_seed,
               options.occluded_cameras);
     }
     for (std::int64_t i = 0; split_by_robot && i < m; ++i) {
-      std::vector<double> q(static_cast<std::size_t>(angle_width));
-      for (std::int64_t c = 0; c < angle_width; ++c) {
-        float a;
-        std::memcpy(&a, angle_rows.data.data() + ((b + i) * angle_width + c) * 4, 4);
-        q[static_cast<std::size_t>(c)] = a;
-      }
-      options.robot_masks(q, masks.data());
       const std::size_t at = static_cast<std::size_t>(b + i);
-      for (std::int64_t c = 0; c < config.cameras; ++c)
-        robot[at] +=
-            std::count_if(masks.begin() + c * side * side, masks.begin() + (c + 1) * side * side,
-                          [](std::uint8_t v) { return v != 0; });
+      std::vector<bool>& silhouette = cache.silhouettes[at];
+      if (!cached_masks) {
+        std::vector<double> q(static_cast<std::size_t>(angle_width));
+        for (std::int64_t c = 0; c < angle_width; ++c) {
+          float a;
+          std::memcpy(&a, angle_rows.data.data() + ((b + i) * angle_width + c) * 4, 4);
+          q[static_cast<std::size_t>(c)] = a;
+        }
+        options.robot_masks(q, masks.data());
+        silhouette.resize(masks.size());
+        for (std::size_t p = 0; p < masks.size(); ++p)
+          silhouette[p] = masks[p] != 0;
+        cache.robot_pixels[at] = std::count(silhouette.begin(), silhouette.end(), true);
+      }
       for (std::int64_t c : painted) {
         const OcclusionSquare sq =
             occlusion_square(options.occlusion_seed, part[static_cast<std::size_t>(i)], c, side,
                              side, options.occlusion);
         for (std::int64_t r = sq.y; r < sq.y + sq.size; ++r)
           for (std::int64_t x = sq.x; x < sq.x + sq.size; ++x)
-            hidden[at] += masks[static_cast<std::size_t>((c * side + r) * side + x)] != 0;
+            hidden[at] += silhouette[static_cast<std::size_t>((c * side + r) * side + x)];
       }
     }
     const Tensor codes = estimator.codes(to_input(raw.data, m));
@@ -455,7 +484,9 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
     double hiding = 0, share = 0;
     for (std::size_t i = 0; i < hidden.size(); ++i) {
       hiding += hidden[i] > 0;
-      share += robot[i] > 0 ? static_cast<double>(hidden[i]) / static_cast<double>(robot[i]) : 0;
+      share += cache.robot_pixels[i] > 0
+                   ? static_cast<double>(hidden[i]) / static_cast<double>(cache.robot_pixels[i])
+                   : 0;
     }
     sp.share_hiding = hiding / static_cast<double>(n);
     sp.robot_hidden = share / static_cast<double>(n);

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdio>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -15,6 +16,11 @@ inline std::string fmt(double v, int digits = 3) {
   char b[32];
   std::snprintf(b, sizeof b, "%.*f", digits, v);
   return b;
+}
+
+// fmt(*v), or "--" when there is no value
+inline std::string fmt(const std::optional<double>& v) {
+  return v ? fmt(*v) : "--";
 }
 
 inline std::string plus_minus(double mean, double sd) {

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
+#include <ropes_eval/run_evaluation.hpp>
 
 #include <signal.h>
 #include <sys/wait.h>
@@ -16,8 +17,10 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <memory>
 #include <set>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 
 namespace fs = std::filesystem;
@@ -676,6 +679,87 @@ TEST_F(Pipeline, SuitesGenerateTheirTestDataOnceAndReportEverySuite) {
       << md;
   EXPECT_NE(md.find("| labels a supervised encoder needs to match ROPES |"), std::string::npos)
       << md;
+
+  // the suites of one test set share the clean codes and silhouettes (EvaluationCache): an
+  // evaluation with a cache another suite filled equals one that computes its own, and does
+  // not render the silhouettes again. The silhouette here is a stand-in drawn from the angles.
+  fs::path test_dir;
+  for (const fs::directory_entry& e : fs::directory_iterator(cache))
+    if (e.path().filename().string().rfind("tiny-1c-seed1-", 0) == 0)
+      test_dir = e.path();
+  ASSERT_FALSE(test_dir.empty()) << "no tiny-1c seed 1 test set in " << cache;
+  std::int64_t drawn = 0;
+  ropes::eval::RunEvaluationOptions o;
+  o.repeats = 2;
+  o.calibration_samples = 20;
+  o.test_samples = 20;
+  o.probe_steps = 0;
+  o.robot_masks = [&drawn](const std::vector<double>& angles, std::uint8_t* masks) {
+    ++drawn;
+    const int shift = static_cast<int>(std::lround(std::fabs(angles.at(0)) * 40.0));
+    for (int i = 0; i < 32 * 32; ++i)  // tiny-1c: one camera of 32 x 32
+      masks[i] = ((i % 32) / 4 + shift) % 4 == 0;
+  };
+  o.occlusion = 16;
+  const ropes::eval::RunEvaluation own = ropes::eval::evaluate_run(run_dir, test_dir, o);
+  const std::int64_t drawn_alone = drawn;
+  EXPECT_EQ(drawn_alone, own.observational_samples);
+  o.cache = std::make_shared<ropes::eval::EvaluationCache>();
+  o.occlusion = 8;
+  ropes::eval::evaluate_run(run_dir, test_dir, o);  // fills the cache
+  drawn = 0;
+  o.occlusion = 16;
+  const ropes::eval::RunEvaluation shared = ropes::eval::evaluate_run(run_dir, test_dir, o);
+  EXPECT_EQ(drawn, 0) << "the silhouettes were drawn again";
+  EXPECT_EQ(shared.to_json().dump(), own.to_json().dump());
+  ASSERT_TRUE(own.occlusion_split.has_value());
+  EXPECT_GT(own.occlusion_split->share_hiding, 0.0);
+  // a cache holds one run and one test set; it is refused for another
+  o.cache->run_dir = dir_ / "another_run";
+  EXPECT_THROW(
+      {
+        try {
+          ropes::eval::evaluate_run(run_dir, test_dir, o);
+        } catch (const std::invalid_argument& e) {
+          EXPECT_NE(std::string(e.what()).find("expected one cache per run and test set"),
+                    std::string::npos)
+              << e.what();
+          throw;
+        }
+      },
+      std::invalid_argument);
+  // cameras to occlude without a square to place
+  o.cache = nullptr;
+  o.occlusion = 0;
+  o.occluded_cameras = {0};
+  EXPECT_THROW(
+      {
+        try {
+          ropes::eval::evaluate_run(run_dir, test_dir, o);
+        } catch (const std::invalid_argument& e) {
+          EXPECT_NE(std::string(e.what()).find("but the occlusion square is 0 px"),
+                    std::string::npos)
+              << e.what();
+          throw;
+        }
+      },
+      std::invalid_argument);
+  // a test set given with --data has no config to render the silhouettes from: the occluded
+  // suite runs without the split and a note says why
+  const Output data = run(kEval + " --run " + run_dir.string() + " --data " + test_dir.string() +
+                          " --suite id,occlusion --occlusion-sizes 8 --probe-steps 0"
+                          " --supervised none --repeats 2 --calibration-samples 20"
+                          " --test-samples 20 --out " +
+                          (dir_ / "report_data").string());
+  ASSERT_EQ(data.rc, 0) << data.text;
+  const nlohmann::json rd = json_of(dir_ / "report_data" / "results.json");
+  EXPECT_NE(rd["notes"].dump().find(
+                "occlusion: no split by robot pixels: a test set passed with --data has no config"),
+            std::string::npos)
+      << rd["notes"].dump();
+  ASSERT_EQ(rd["suites"].size(), 2u) << rd.dump(1);
+  EXPECT_TRUE(rd["suites"][1]["results"]["occlusion_diagnostics"]["split"].is_null())
+      << rd["suites"][1]["results"]["occlusion_diagnostics"].dump();
 
   // two cameras: the OOD test set of the paper's OOD table, its appendix row beside ours
   const Output g =

@@ -239,9 +239,12 @@ SuiteOutcome run_suites(const std::string& run_dir, const std::string& data, con
         log(report.notes.back());
       }
     }
+    // the clean codes and silhouettes, computed by the first occluded suite, reused by the rest
+    const auto cache = std::make_shared<ropes::eval::EvaluationCache>();
     auto evaluate = [&, d = d, test = test](std::int64_t size, std::vector<std::int64_t> cameras,
                                             const std::string& name) {
       ropes::eval::RunEvaluationOptions o = options;
+      o.cache = cache;
       o.occlusion = size;
       o.occlusion_seed = options.seed;
       o.occluded_cameras = std::move(cameras);

@@ -43,6 +43,16 @@ struct OcclusionDiagnosticRow {
   std::vector<double> mcc;
 };
 
+/// One occluded suite's summary (results.md, report.html): which cameras carry the squares
+/// ("all" or their indices, e.g. "0"), AE1's code shift (RunEvaluation::code_shift) and, where
+/// the suite has OcclusionSplit, the share of samples whose squares hide robot pixels and the
+/// mean share of the robot's pixels hidden.
+struct OcclusionSummary {
+  std::string suite, cameras;
+  double code_shift = 0;
+  std::optional<double> share_hiding, robot_hidden;
+};
+
 struct EvaluationReport {
   std::vector<SuiteResult> suites;
   /// Occluded suites that are diagnostics, not the paper's test, kept out of the suites'
@@ -82,6 +92,8 @@ struct EvaluationReport {
   /// and the supervised encoder with every label (AE1's code alone) — on all test samples
   /// and, where the suite has OcclusionSplit, on each group.
   std::vector<OcclusionDiagnosticRow> occlusion_rows() const;
+  /// One summary per occluded suite, the paper's suites first, then the diagnostics.
+  std::vector<OcclusionSummary> occlusion_summaries() const;
   /// The occluded suites' summaries as a markdown section ("" without an occluded suite):
   /// AE1's code shift, the share of samples whose squares hide the robot, and
   /// occlusion_rows().

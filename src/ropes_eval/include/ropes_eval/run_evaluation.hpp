@@ -22,6 +22,7 @@
 #include <filesystem>
 #include <functional>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -29,6 +30,19 @@
 namespace ropes::eval {
 
 class SupervisedEncoder;
+
+/// What the occluded evaluations of one run on one test set share, computed by the first that
+/// needs it and reused by the others (RunEvaluationOptions::cache): AE1's codes of the clean
+/// observational images (for RunEvaluation::code_shift) and the robot's silhouettes (for
+/// OcclusionSplit), neither of which depends on the squares. Filled by evaluate_run only.
+struct EvaluationCache {
+  std::filesystem::path run_dir, data_dir;  ///< what it holds (empty: nothing yet)
+  Eigen::MatrixXd clean_codes;              ///< [observational samples, code]; empty: not yet
+  /// per observational sample, its robot pixels in every camera and its silhouette
+  /// ([cameras, side, side], true on the robot); empty: not yet
+  std::vector<std::int64_t> robot_pixels;
+  std::vector<std::vector<bool>> silhouettes;
+};
 
 struct RunEvaluationOptions {
   std::int64_t repeats = 15;                ///< draws of a calibration set and a test set
@@ -49,6 +63,10 @@ struct RunEvaluationOptions {
   /// samples are split by whether a square hides robot pixels (RunEvaluation::occlusion_split).
   /// ropes-eval's suites render it with the test set's own rig.
   std::function<void(const std::vector<double>& angles, std::uint8_t* masks)> robot_masks;
+  /// Optional: the clean codes and silhouettes kept between the occluded evaluations of one
+  /// run on one test set (ropes-eval's suites share one per test set); a cache that holds
+  /// another run or test set is refused. Null: each evaluation computes its own.
+  std::shared_ptr<EvaluationCache> cache;
   /// Supervised baselines (supervised.hpp), scored as methods named "supervised_<p>%" (p:
   /// the percentage of labelled training samples); their latents are their angle estimates,
   /// and their "mse" is the estimate's own error (no calibration). Not owned.
@@ -125,8 +143,9 @@ struct RunEvaluation {
 /// Evaluates the run in `run_dir` on the dataset in `data_dir`. Throws std::invalid_argument
 /// when `data_dir` is the dataset the run trained on (same dataset id), when it lacks a
 /// joint of the run, when it holds fewer observational samples than calibration_samples +
-/// test_samples, when an option is out of range, or when its images differ from the run's
-/// (cameras, size); nn::FileFormatError for unreadable files.
+/// test_samples, when an option is out of range (occluded_cameras without an occlusion among
+/// them), when options.cache holds another run or test set, or when its images differ from the
+/// run's (cameras, size); nn::FileFormatError for unreadable files.
 RunEvaluation evaluate_run(const std::filesystem::path& run_dir,
                            const std::filesystem::path& data_dir,
                            const RunEvaluationOptions& options = {});
