@@ -90,10 +90,10 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
 
     // AE1
     const nlohmann::json& a1 = field(j, "config", "ae1");
-    reject_unknown_keys(
-        a1, "config.ae1",
-        {"stem", "stem_factor", "stem_channels", "widths", "blocks_per_stage", "code_channels",
-         "code_head", "batch_size", "steps", "epochs", "micro_batch", "optimizer"});
+    reject_unknown_keys(a1, "config.ae1",
+                        {"stem", "stem_factor", "stem_channels", "widths", "blocks_per_stage",
+                         "code_channels", "code_head", "batch_size", "steps", "epochs",
+                         "micro_batch", "optimizer", "occlusion_augmentation"});
     c.ae1.image_size = c.image_size;
     c.ae1.stem = get_string(a1, "config.ae1", "stem");
     c.ae1.stem_factor = static_cast<int>(get_int(a1, "config.ae1", "stem_factor"));
@@ -125,6 +125,28 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
     }
     c.ae1_training.optimizer =
         parse_optimizer(field(a1, "config.ae1", "optimizer"), "config.ae1.optimizer");
+    if (a1.contains("occlusion_augmentation")) {  // optional, an extension: off when absent
+      const std::string aug = "config.ae1.occlusion_augmentation";
+      const nlohmann::json& o = field(a1, "config.ae1", "occlusion_augmentation");
+      if (!o.is_object())
+        throw std::invalid_argument(aug +
+                                    ": expected an object {\"probability\", \"min_size\", "
+                                    "\"max_size\"}, got " +
+                                    o.dump());
+      reject_unknown_keys(o, aug, {"probability", "min_size", "max_size"});
+      OcclusionAugmentation& a = c.ae1_training.occlusion_augmentation;
+      a.probability = get_double(o, aug, "probability");
+      a.min_size = get_int(o, aug, "min_size");
+      a.max_size = get_int(o, aug, "max_size");
+      if (!(a.probability > 0 && a.probability <= 1))
+        throw std::invalid_argument(aug + ".probability: expected in (0, 1], got " +
+                                    o["probability"].dump());
+      if (a.min_size < 1 || a.max_size < a.min_size || a.max_size > c.image_size)
+        throw std::invalid_argument(aug + ": min_size " + std::to_string(a.min_size) +
+                                    ", max_size " + std::to_string(a.max_size) +
+                                    "; expected 1 <= min_size <= max_size <= the image's " +
+                                    std::to_string(c.image_size) + " px");
+    }
 
     // the code Y: [C, 8, 8]
     const std::int64_t side = c.ae1.code_size();

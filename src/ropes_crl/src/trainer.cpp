@@ -6,6 +6,7 @@
 #include <ropes_nn/npy.hpp>
 #include <ropes_nn/ops.hpp>
 #include <ropes_nn/parallel.hpp>
+#include <ropes_nn/philox.hpp>
 #include <ropes_nn/train_step.hpp>
 
 #include <algorithm>
@@ -35,6 +36,35 @@ using nn::Shape;
 
 const char* ropes_crl_version() {
   return ROPES_CRL_VERSION_STRING;
+}
+
+Tensor occlusion_augmented(const Tensor& images, const OcclusionAugmentation& a, std::uint64_t seed,
+                           std::uint64_t step) {
+  const Shape& shape = images.shape();
+  if (shape.rank() != 4 || shape[1] != 1 || shape[2] != shape[3] || a.min_size < 1 ||
+      a.max_size < a.min_size || a.max_size > shape[2])
+    throw std::invalid_argument("occlusion_augmented: images of shape " + shape.str() +
+                                ", squares of " + std::to_string(a.min_size) + " to " +
+                                std::to_string(a.max_size) +
+                                " px; expected [n, 1, S, S] and 1 <= min_size <= max_size <= S");
+  const std::int64_t n = shape[0], side = shape[2];
+  nn::PhiloxStream rng(seed, step);
+  Tensor out = images.detach();
+  float* px = out.mutable_data();
+  auto uniform_int = [&rng](std::int64_t lo, std::int64_t hi) {  // on [lo, hi]
+    const auto places = static_cast<double>(hi - lo + 1);
+    return std::min<std::int64_t>(hi,
+                                  lo + static_cast<std::int64_t>(rng.uniform_double() * places));
+  };
+  for (std::int64_t i = 0; i < n; ++i) {
+    if (!(rng.uniform_double() < a.probability))
+      continue;
+    const std::int64_t size = uniform_int(a.min_size, a.max_size);
+    const std::int64_t x = uniform_int(0, side - size), y = uniform_int(0, side - size);
+    for (std::int64_t r = y; r < y + size; ++r)
+      std::fill_n(px + (i * side + r) * side + x, size, 1.0f);
+  }
+  return out;
 }
 
 namespace {
@@ -170,15 +200,24 @@ void train_ae1(const ExperimentConfig& config, const TrainingData& data, const f
   Clock::time_point window = Clock::now();
   std::int64_t window_images = 0;
   const std::int64_t side = config.image_size;
+  const std::uint64_t augmentation_seed = derive_seed(options.seed, "ae1.occlusion");
   while (adam.steps() < t.steps) {
     const nn::Batch batch = loader.next();
     const std::int64_t n = batch.size() * config.cameras;
     // every camera image is one AE1 sample: [rows, cams, S, S] -> [rows * cams, 1, S, S]
     const Tensor images = nn::reshape(batch.tensor("images"), Shape{n, 1, side, side});
+    // with the occlusion augmentation (an extension), AE1 sees squares, and its target is the
+    // clean image; the squares of step s come from stream s, so a resumed run draws the same
+    const Tensor inputs =
+        t.occlusion_augmentation.probability > 0
+            ? occlusion_augmented(images, t.occlusion_augmentation, augmentation_seed,
+                                  static_cast<std::uint64_t>(adam.steps()))
+            : images;
     const std::vector<nn::RowRange> parts = nn::split_rows(n, t.micro_batch);
     const nn::BatchLoss loss = nn::mean_loss([&](std::size_t i) {
-      const Tensor x = nn::slice(images, 0, parts[i].begin, parts[i].end);
-      return nn::mean(nn::square(nn::sub(net(x), x)), {1, 2, 3});
+      const Tensor x = nn::slice(inputs, 0, parts[i].begin, parts[i].end);
+      const Tensor target = nn::slice(images, 0, parts[i].begin, parts[i].end);
+      return nn::mean(nn::square(nn::sub(net(x), target)), {1, 2, 3});
     });
     nn::StepOptions so;
     so.micro_batches = parts.size();

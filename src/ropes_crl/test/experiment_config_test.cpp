@@ -1,11 +1,14 @@
 #include "ropes_crl/experiment_config.hpp"
+#include "ropes_crl/trainer.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <stdexcept>
 
 using namespace ropes::crl;
+namespace nn = ropes::nn;
 namespace fs = std::filesystem;
 
 namespace {
@@ -73,6 +76,31 @@ TEST(ExperimentConfig, ErrorsNameTheFileTheFieldAndTheValue) {
                              "\"resblock_linear\", got \"sigmoid\""),
             std::string::npos)
       << error_of(j);
+  // the occlusion augmentation (an extension, off when absent): an object of three fields
+  j = c.raw;
+  j["ae1"]["occlusion_augmentation"] = 0.5;
+  EXPECT_NE(error_of(j).find("config.ae1.occlusion_augmentation: expected an object"),
+            std::string::npos)
+      << error_of(j);
+  j["ae1"]["occlusion_augmentation"] = {{"probability", 1.5}, {"min_size", 8}, {"max_size", 16}};
+  EXPECT_NE(error_of(j).find("config.ae1.occlusion_augmentation.probability: expected in (0, 1], "
+                             "got 1.5"),
+            std::string::npos)
+      << error_of(j);
+  j["ae1"]["occlusion_augmentation"] = {{"probability", 0.5}, {"min_size", 8}, {"max_size", 900}};
+  EXPECT_NE(error_of(j).find("config.ae1.occlusion_augmentation: min_size 8, max_size 900; "
+                             "expected 1 <= min_size <= max_size <= the image's"),
+            std::string::npos)
+      << error_of(j);
+  j["ae1"]["occlusion_augmentation"] = {{"probability", 0.5}, {"min_size", 8}, {"size", 9}};
+  EXPECT_NE(error_of(j).find("config.ae1.occlusion_augmentation"), std::string::npos)
+      << error_of(j);
+  j["ae1"]["occlusion_augmentation"] = {{"probability", 0.5}, {"min_size", 8}, {"max_size", 16}};
+  EXPECT_EQ(error_of(j), "");
+  EXPECT_DOUBLE_EQ(
+      ExperimentConfig::from_json(j, "test.json").ae1_training.occlusion_augmentation.probability,
+      0.5);
+  EXPECT_DOUBLE_EQ(c.ae1_training.occlusion_augmentation.probability, 0.0) << "off when absent";
   j = c.raw;
   j["ae2"]["input_normalization"] = 1;
   EXPECT_NE(error_of(j).find("config.ae2.input_normalization"), std::string::npos) << error_of(j);
@@ -104,4 +132,47 @@ TEST(ExperimentConfig, ErrorsNameTheFileTheFieldAndTheValue) {
     EXPECT_NE(std::string(e.what()).find("'no-such-config' is neither a file nor an installed"),
               std::string::npos);
   }
+}
+
+// AE1's occlusion augmentation: every image of a batch of black images, at probability 1,
+// carries exactly one white square of a side within the bounds; at probability 1/2 about half
+// do; a step's squares are the same when drawn again and differ from another step's; the
+// input is not touched.
+TEST(OcclusionAugmentation, PaintsOneSquareAnImageAtTheProbabilityAndTheSameOnesAgain) {
+  const std::int64_t n = 400, side = 32;
+  const nn::Tensor black(nn::Shape{n, 1, side, side},
+                         nn::Buffer(static_cast<std::size_t>(n * side * side), 0.0f));
+  OcclusionAugmentation a{1.0, 4, 12};
+  const nn::Tensor all = occlusion_augmented(black, a, 7, 3);
+  const std::vector<float> v = all.to_vector();
+  for (std::int64_t i = 0; i < n; ++i) {
+    std::int64_t lit = 0, top = side, bottom = -1, left = side, right = -1;
+    for (std::int64_t r = 0; r < side; ++r)
+      for (std::int64_t c = 0; c < side; ++c)
+        if (v[static_cast<std::size_t>((i * side + r) * side + c)] == 1.0f) {
+          ++lit;
+          top = std::min(top, r);
+          bottom = std::max(bottom, r);
+          left = std::min(left, c);
+          right = std::max(right, c);
+        }
+    const std::int64_t h = bottom - top + 1, w = right - left + 1;
+    ASSERT_EQ(h, w) << "image " << i;
+    ASSERT_EQ(lit, h * w) << "image " << i << ": one filled square";
+    ASSERT_GE(h, 4);
+    ASSERT_LE(h, 12);
+  }
+  EXPECT_EQ(black.to_vector(), std::vector<float>(v.size(), 0.0f)) << "the input was changed";
+  EXPECT_EQ(occlusion_augmented(black, a, 7, 3).to_vector(), v);
+  EXPECT_NE(occlusion_augmented(black, a, 7, 4).to_vector(), v);
+  a.probability = 0.5;
+  const std::vector<float> half = occlusion_augmented(black, a, 7, 3).to_vector();
+  std::int64_t painted = 0;
+  for (std::int64_t i = 0; i < n; ++i)
+    painted += std::any_of(half.begin() + i * side * side, half.begin() + (i + 1) * side * side,
+                           [](float x) { return x != 0.0f; });
+  // binomial(400, 1/2): mean 200, standard deviation 10; 5 of them either way
+  EXPECT_NEAR(static_cast<double>(painted), 200.0, 50.0);
+  a.max_size = 33;
+  EXPECT_THROW(occlusion_augmented(black, a, 7, 3), std::invalid_argument);
 }

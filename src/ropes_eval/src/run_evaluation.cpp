@@ -255,6 +255,13 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
   ev.setting = config.name.substr(0, config.name.rfind('-'));
   ev.joints = config.joints;
   ev.train_dataset_id = run.value("dataset", "");
+  if (const crl::OcclusionAugmentation& a = config.ae1_training.occlusion_augmentation;
+      a.probability > 0)
+    ev.extensions.push_back(
+        "ae1.occlusion_augmentation: AE1 trained to reconstruct clean images "
+        "from images with white squares (probability " +
+        fmt(a.probability, 2) + ", " + std::to_string(a.min_size) + " to " +
+        std::to_string(a.max_size) + " px)");
 
   // the test dataset: not the training set, the run's cameras and image size
   const nn::DatasetReader reader = nn::DatasetReader::open(data_dir);
@@ -625,6 +632,7 @@ nlohmann::json RunEvaluation::to_json() const {
           {"dataset", dataset_id},
           {"train_dataset", train_dataset_id},
           {"joints", joints},
+          {"extensions", extensions},
           {"protocol",
            {{"repeats", methods.empty() ? 0 : methods[0].repeats.size()},
             {"calibration_samples", calibration_samples},
@@ -720,8 +728,10 @@ std::string RunEvaluation::markdown() const {
       << train_dataset_id << "\n"
       << "- protocol: " << reps << " repeats, each " << calibration_samples << " calibration and "
       << test_samples << " disjoint test samples drawn from the " << observational_samples
-      << " observational samples (seed " << seed
-      << "); mean ± std over the repeats; MSE in rad²\n\n";
+      << " observational samples (seed " << seed << "); mean ± std over the repeats; MSE in rad²\n";
+  for (const std::string& e : extensions)
+    out << "- **extension, not the paper's method**: " << e << "\n";
+  out << "\n";
 
   out << "## MCC and MSE, laid out like the paper's Table 1\n\n| setup |";
   for (const std::string& c : columns)

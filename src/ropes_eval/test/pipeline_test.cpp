@@ -761,6 +761,27 @@ TEST_F(Pipeline, SuitesGenerateTheirTestDataOnceAndReportEverySuite) {
   EXPECT_TRUE(rd["suites"][1]["results"]["occlusion_diagnostics"]["split"].is_null())
       << rd["suites"][1]["results"]["occlusion_diagnostics"].dump();
 
+  // AE1 trained with the occlusion augmentation (an extension): other AE1 weights than the
+  // clean run's, and the results say it is not the paper's method
+  EXPECT_TRUE(r["suites"][0]["results"]["extensions"].empty());
+  const fs::path aug = dir_ / "suite_run_augmented";
+  const Output ta = train(aug.string(),
+                          "--set 'ae1.occlusion_augmentation={\"probability\": 0.5, "
+                          "\"min_size\": 4, \"max_size\": 16}'");
+  ASSERT_EQ(ta.rc, 0) << ta.text;
+  EXPECT_NE(bytes_of(aug / "ae1.safetensors"), bytes_of(run_dir / "ae1.safetensors"));
+  const Output ea = run(kEval + " --run " + aug.string() + " --data " + test_dir.string() +
+                        " --suite id --probe-steps 0 --supervised none --repeats 2"
+                        " --calibration-samples 20 --test-samples 20 --out " +
+                        (dir_ / "report_augmented").string());
+  ASSERT_EQ(ea.rc, 0) << ea.text;
+  const std::string mda = bytes_of(dir_ / "report_augmented" / "results.md");
+  EXPECT_NE(mda.find("- **extension, not the paper's method**: ae1.occlusion_augmentation: AE1 "
+                     "trained to reconstruct clean images from images with white squares "
+                     "(probability 0.50, 4 to 16 px)"),
+            std::string::npos)
+      << mda;
+
   // two cameras: the OOD test set of the paper's OOD table, its appendix row beside ours
   const Output g =
       run(kGenerate + " --config tiny-2c --seed 0 --out " + (dir_ / "data2c").string());

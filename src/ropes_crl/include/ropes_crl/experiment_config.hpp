@@ -30,12 +30,24 @@ struct OptimizerConfig {
   nn::LrSchedule make_schedule(std::int64_t steps) const;
 };
 
+/// An extension of AE1's training, not the paper's method (which trains on clean images and
+/// occludes only at test time): each training image, with probability `probability`, gets a
+/// white square (every pixel 1) of a side drawn uniformly from [min_size, max_size] px at a
+/// uniform position inside the image, as the occlusion suites paint them at test time, and AE1
+/// learns to reconstruct the clean image from it. The config's optional
+/// ae1.occlusion_augmentation {"probability", "min_size", "max_size"}; off when absent.
+struct OcclusionAugmentation {
+  double probability = 0;  ///< 0: off
+  std::int64_t min_size = 0, max_size = 0;
+};
+
 /// Stage 1: AE1 on every camera image of the dataset, MSE.
 struct Ae1Training {
   std::int64_t batch_size = 32;  ///< images a step (a sample of C cameras is C images)
   std::int64_t steps = 0;        ///< from "steps", or "epochs" x images / batch_size
   std::int64_t micro_batch = 32;
   OptimizerConfig optimizer;
+  OcclusionAugmentation occlusion_augmentation;
 };
 
 /// Stage 2: one LDR per intervened joint, intervention 1 (label 0) against 2 (label 1),

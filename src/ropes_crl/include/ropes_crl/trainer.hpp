@@ -27,6 +27,8 @@
 /// stop at their next step with a checkpoint of it.
 #include "ropes_crl/experiment_config.hpp"
 
+#include <ropes_nn/tensor.hpp>
+
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -63,6 +65,16 @@ struct TrainOptions {
 /// kept); FileFormatError for unreadable inputs.
 void train(const ExperimentConfig& config, const std::filesystem::path& data_dir,
            const std::filesystem::path& run_dir, const TrainOptions& options);
+
+/// The occlusion augmentation of AE1's training step `step` (OcclusionAugmentation, an
+/// extension): a copy of `images` [n, 1, S, S] (values in [0, 1]) in which each image, with
+/// probability a.probability, has a square of a side uniform on [a.min_size, a.max_size] at a
+/// corner uniform on those that keep it inside set to 1 (white). Per image, in order, the
+/// Philox stream (seed, step) draws whether, the side, the column, then the row, so a step's
+/// squares are the same in a resumed run. Throws std::invalid_argument for another shape or
+/// sizes outside [1, S].
+nn::Tensor occlusion_augmented(const nn::Tensor& images, const OcclusionAugmentation& a,
+                               std::uint64_t seed, std::uint64_t step);
 
 /// The version of ropes_crl ("0.1.0").
 const char* ropes_crl_version();

@@ -112,6 +112,9 @@ struct OcclusionSplit {
 struct RunEvaluation {
   std::string run_dir, data_dir, config_name, setting, dataset_id, train_dataset_id;
   std::vector<std::string> joints;
+  /// what the run's training adds to the paper's method (an extension, never the
+  /// reproduction), e.g. AE1's occlusion augmentation; empty: none
+  std::vector<std::string> extensions;
   std::int64_t calibration_samples = 0, test_samples = 0, observational_samples = 0;
   std::uint64_t seed = 0;
   std::int64_t occlusion = 0;  ///< the square's side in pixels (0: none)
