@@ -4,7 +4,8 @@
 # (all but those labelled slow, heavy or fault, which touch no DDS and run in the main build),
 # and ropes_msgs must install a config file that tells a consumer it was built without Fast DDS.
 # ropes_nn has no DDS option, so it is not built again: the main install's is used. The build
-# is -O1, which compiles in less time than Release's -O3 and runs the tests as they are.
+# is -O1, which compiles in less time than Release's -O3 and runs the tests as they are, and
+# leaves out the benchmarks (they have no DDS part; the main build compiles them).
 # Usage: dds_off_test.sh WORKSPACE (its install/ropes_nn built)
 set -euo pipefail
 workspace=$(cd "$1" && pwd)
@@ -25,7 +26,8 @@ mkdir -p "$scratch/install"
 cp -a "$workspace/install/ropes_nn" "$scratch/install/ropes_nn"
 colcon --log-base "$scratch/log" build --build-base "$scratch/build" --install-base "$scratch/install" \
   --packages-skip ropes_nn --cmake-args -DCMAKE_BUILD_TYPE=Release \
-  "-DCMAKE_CXX_FLAGS_RELEASE=-O1 -DNDEBUG" -DROPES_WITH_DDS=OFF --no-warn-unused-cli
+  "-DCMAKE_CXX_FLAGS_RELEASE=-O1 -DNDEBUG" -DROPES_WITH_DDS=OFF -DROPES_BUILD_BENCH=OFF \
+  --no-warn-unused-cli
 grep -q "ROPES_WITH_DDS:STRING=OFF" "$scratch/build/ropes_msgs/CMakeCache.txt"
 if [ -e "$scratch/install/ropes_msgs/include/ropes_msgs" ]; then
   echo "FAIL: ropes_msgs installed message headers with ROPES_WITH_DDS=OFF" >&2
