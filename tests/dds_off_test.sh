@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Builds and tests the workspace with -DROPES_WITH_DDS=OFF in a scratch build and install
 # space: every package that has the option (all but ropes_nn) must build and pass its tests
-# (all but those labelled slow, heavy or fault, which touch no DDS and run in the main build),
+# (all but those labelled slow, heavy or fault and ropes_eval's pipeline tests, which touch no
+# DDS and run in the main build; ropes-run runs the tools end to end instead),
 # and ropes_msgs must install a config file that tells a consumer it was built without Fast DDS.
 # ropes_nn has no DDS option, so it is not built again: the main install's is used. The build
 # is -O1, which compiles in less time than Release's -O3 and runs the tests as they are, and
@@ -49,14 +50,24 @@ if [ "$status_rc" != 2 ] || ! grep -q "built without Fast DDS" <<< "$status_out"
   echo "FAIL: --status / --live without DDS: rc $status_rc '$status_out', rc $live_rc '$live_out'" >&2
   exit 1
 fi
+# the tools end to end without DDS: ropes-run on the tiny preset (generate, train, evaluate,
+# report)
+if ! smoke=$("$scratch/install/ropes_eval/bin/ropes-run" 1c-tiny --out "$scratch/run" \
+       --threads 2 --progress lines 2>&1) || [ ! -s "$scratch/run/report/results.md" ]; then
+  echo "$smoke"
+  echo "FAIL: ropes-run 1c-tiny built without DDS did not finish with a report" >&2
+  exit 1
+fi
 # the packages' `slow`, `heavy` and `fault` tests (presets trained, the tools killed) touch
-# no DDS and ran in the main build; here every other test runs (colcon wants a space before
-# the dash)
+# no DDS and ran in the main build, and so did ropes_eval's `Pipeline.*` tests, which run the
+# tools with every flag (ropes-run above runs them without DDS); here every other test runs
+# (colcon wants a space before the dash)
 # test-result runs after a failure too: with --verbose it prints the failed tests' output,
 # which the scratch directory takes with it when this script ends
 tests_rc=0
 colcon --log-base "$scratch/log" test --build-base "$scratch/build" --install-base "$scratch/install" \
-  --packages-skip ropes_nn --ctest-args " -LE" "slow|heavy|fault" || tests_rc=$?
+  --packages-skip ropes_nn --ctest-args " -LE" "slow|heavy|fault" " -E" "^Pipeline\." ||
+  tests_rc=$?
 colcon --log-base "$scratch/log" test-result --test-result-base "$scratch/build" --verbose
 if [ "$tests_rc" != 0 ]; then
   echo "FAIL: colcon test exited $tests_rc in the build without DDS" >&2
