@@ -38,6 +38,12 @@ void require_positive(std::int64_t v, const std::string& name) {
     throw std::invalid_argument(name + ": expected >= 1, got " + std::to_string(v));
 }
 
+std::string number_text(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
 }  // namespace
 
 nn::LrSchedule OptimizerConfig::make_schedule(std::int64_t steps) const {
@@ -93,7 +99,7 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
     reject_unknown_keys(a1, "config.ae1",
                         {"stem", "stem_factor", "stem_channels", "widths", "blocks_per_stage",
                          "code_channels", "code_head", "batch_size", "steps", "epochs",
-                         "micro_batch", "optimizer", "occlusion_augmentation"});
+                         "micro_batch", "optimizer", "occlusion_augmentation", "difference_loss"});
     c.ae1.image_size = c.image_size;
     c.ae1.stem = get_string(a1, "config.ae1", "stem");
     c.ae1.stem_factor = static_cast<int>(get_int(a1, "config.ae1", "stem_factor"));
@@ -146,6 +152,30 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
                                     ", max_size " + std::to_string(a.max_size) +
                                     "; expected 1 <= min_size <= max_size <= the image's " +
                                     std::to_string(c.image_size) + " px");
+    }
+
+    if (a1.contains("difference_loss")) {  // optional, a variant: off when absent
+      const std::string at = "config.ae1.difference_loss";
+      const nlohmann::json& o = field(a1, "config.ae1", "difference_loss");
+      if (!o.is_object())
+        throw std::invalid_argument(at + ": expected an object {\"weight\"}, got a " +
+                                    std::string(o.type_name()));
+      reject_unknown_keys(o, at, {"weight"});
+      const double w = get_double(o, at, "weight");
+      if (!(w > 0 && w <= 1e6))
+        throw std::invalid_argument(at + ".weight: expected in (0, 1e6], got " + number_text(w));
+      const std::int64_t samples = c.ae1_training.batch_size / c.cameras;
+      if (samples % 2 != 0)
+        throw std::invalid_argument(
+            at + ": config.ae1.batch_size " + std::to_string(c.ae1_training.batch_size) + " is " +
+            std::to_string(samples) +
+            " samples a step; expected an even number (half of them are the observational "
+            "samples of the other half's anchors)");
+      if (c.ae1_training.occlusion_augmentation.probability > 0)
+        throw std::invalid_argument(at +
+                                    ": not combined with config.ae1.occlusion_augmentation; "
+                                    "choose one");
+      c.ae1_training.difference_loss.weight = w;
     }
 
     // the code Y: [C, 8, 8]

@@ -67,6 +67,33 @@ Tensor occlusion_augmented(const Tensor& images, const OcclusionAugmentation& a,
   return out;
 }
 
+Tensor ae1_difference_loss(const Tensor& recon, const Tensor& recon_o, const Tensor& x,
+                           const Tensor& xo, const Tensor& mask, double weight) {
+  const Shape& shape = x.shape();
+  if (shape.rank() != 4 || recon.shape() != shape || recon_o.shape() != shape ||
+      xo.shape() != shape || mask.shape() != Shape{shape[0]})
+    throw std::invalid_argument("ae1_difference_loss: reconstructions " + recon.shape().str() +
+                                " and " + recon_o.shape().str() + ", images " + shape.str() +
+                                " and " + xo.shape().str() + ", mask " + mask.shape().str() +
+                                "; expected four equal [n, C, H, W] and a mask [n]");
+  const std::vector<int> pixels = {1, 2, 3};
+  const Tensor change = nn::sub(x, xo).detach();
+  // the normalisation max(||x - xo||^2, 1) times the mask: constants
+  Tensor scale = nn::sum(nn::square(change), pixels).detach();
+  {
+    float* p = scale.mutable_data();
+    const float* m = mask.data();
+    for (std::int64_t i = 0; i < shape[0]; ++i)
+      p[i] = static_cast<float>(weight) * m[i] / std::max(p[i], 1.0f);
+  }
+  const Tensor reconstruction =
+      nn::mul_scalar(nn::add(nn::mean(nn::square(nn::sub(recon, x)), pixels),
+                             nn::mean(nn::square(nn::sub(recon_o, xo)), pixels)),
+                     0.5f);
+  const Tensor change_error = nn::sum(nn::square(nn::sub(nn::sub(recon, recon_o), change)), pixels);
+  return nn::add(reconstruction, nn::mul(change_error, scale));
+}
+
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -179,9 +206,23 @@ void train_ae1(const ExperimentConfig& config, const TrainingData& data, const f
   nn::Adam adam(net.named_parameters(), nn::AdamOptions{t.optimizer.lr});
   nn::LrSchedule schedule = t.optimizer.make_schedule(t.steps);
 
+  // the difference loss (a variant): half the step's samples are the others' anchors'
+  // observational samples
+  const double difference_weight = t.difference_loss.weight;
+  const bool pairs = difference_weight > 0;
+  if (pairs)
+    for (std::int64_t r = 0; r < data.rows; ++r)
+      if (data.observational_row[static_cast<std::size_t>(r)] < 0)
+        throw std::invalid_argument(
+            "config.ae1.difference_loss pairs each sample with its anchor's observational "
+            "sample; " +
+            data.dir.string() + " has none for anchor " +
+            std::to_string(data.anchor[static_cast<std::size_t>(r)]) + " (row " +
+            std::to_string(r) + ")");
+
   nn::BatchLoaderOptions lo;
   lo.columns = {"images"};
-  lo.batch_size = t.batch_size / config.cameras;
+  lo.batch_size = t.batch_size / config.cameras / (pairs ? 2 : 1);
   lo.seed = derive_seed(options.seed, "ae1.data");
   lo.drop_last = lo.batch_size <= data.rows;
   nn::BatchLoader loader(data.reader, lo);
@@ -213,18 +254,47 @@ void train_ae1(const ExperimentConfig& config, const TrainingData& data, const f
             ? occlusion_augmented(images, t.occlusion_augmentation, augmentation_seed,
                                   static_cast<std::uint64_t>(adam.steps()))
             : images;
-    const std::vector<nn::RowRange> parts = nn::split_rows(n, t.micro_batch);
-    const nn::BatchLoss loss = nn::mean_loss([&](std::size_t i) {
-      const Tensor x = nn::slice(inputs, 0, parts[i].begin, parts[i].end);
-      const Tensor target = nn::slice(images, 0, parts[i].begin, parts[i].end);
-      return nn::mean(nn::square(nn::sub(net(x), target)), {1, 2, 3});
-    });
+    std::vector<nn::RowRange> parts;
+    nn::BatchLoss loss;
+    Tensor observational, masks;  // outlive the loss, which reads them
+    if (pairs) {
+      // each image with its anchor's observational image: micro-batches of pairs
+      std::vector<std::int64_t> partners;
+      nn::Buffer mask(static_cast<std::size_t>(n));
+      for (std::size_t k = 0; k < batch.rows.size(); ++k) {
+        const std::int64_t row = batch.rows[k];
+        partners.push_back(data.observational_row[static_cast<std::size_t>(row)]);
+        for (std::int64_t c = 0; c < config.cameras; ++c)
+          mask[k * static_cast<std::size_t>(config.cameras) + static_cast<std::size_t>(c)] =
+              partners.back() == row ? 0.0f : 1.0f;
+      }
+      const nn::NpyArray raw = data.reader.read_rows_at("images", partners);
+      nn::Buffer pixels(raw.data.size());
+      for (std::size_t i = 0; i < pixels.size(); ++i)
+        pixels[i] = static_cast<float>(raw.data[i]) / 255.0f;
+      observational = Tensor(Shape{n, 1, side, side}, std::move(pixels));
+      masks = Tensor(Shape{n}, std::move(mask));
+      parts = nn::split_rows(n, std::max<std::int64_t>(1, t.micro_batch / 2));
+      loss = nn::mean_loss([&](std::size_t i) {
+        const std::int64_t b = parts[i].begin, e = parts[i].end;
+        const Tensor x = nn::slice(images, 0, b, e), xo = nn::slice(observational, 0, b, e);
+        return ae1_difference_loss(net(x), net(xo), x, xo, nn::slice(masks, 0, b, e),
+                                   difference_weight);
+      });
+    } else {
+      parts = nn::split_rows(n, t.micro_batch);
+      loss = nn::mean_loss([&](std::size_t i) {
+        const Tensor x = nn::slice(inputs, 0, parts[i].begin, parts[i].end);
+        const Tensor target = nn::slice(images, 0, parts[i].begin, parts[i].end);
+        return nn::mean(nn::square(nn::sub(net(x), target)), {1, 2, 3});
+      });
+    }
     nn::StepOptions so;
     so.micro_batches = parts.size();
     so.schedule = &schedule;
     so.clip_norm = t.optimizer.clip_norm;
     const nn::StepResult r = checked_step(adam, loss, so, "ae1", checkpoint);
-    window_images += n;
+    window_images += pairs ? 2 * n : n;
     const std::int64_t step = adam.steps();
     if (step % config.log_every == 0 || step == t.steps) {
       const double rate = static_cast<double>(window_images) / seconds_since(window);

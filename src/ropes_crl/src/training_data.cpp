@@ -6,6 +6,8 @@
 #include <ropes_nn/ops.hpp>
 
 #include <cstring>
+#include <map>
+#include <set>
 #include <stdexcept>
 
 #include "ropes_crl/bayes_accuracy.hpp"
@@ -47,7 +49,7 @@ std::vector<T> read_scalar_column(const nn::DatasetReader& reader, const std::st
 
 TrainingData TrainingData::open(const ExperimentConfig& config, const fs::path& dir,
                                 std::uint64_t seed) {
-  TrainingData d{dir, nn::DatasetReader::open(dir), {}, 0, {}, {}, {}, {}, {}, {}};
+  TrainingData d{dir, nn::DatasetReader::open(dir), {}, 0, {}, {}, {}, {}, {}, {}, {}};
   const fs::path manifest = dir / "manifest.json";
   d.dataset_id = read_json_file(manifest).value("dataset", "");
   d.rows = d.reader.rows();
@@ -74,6 +76,22 @@ TrainingData TrainingData::open(const ExperimentConfig& config, const fs::path& 
       d.reader.metadata_at("/regimes", "regenerate the dataset with this ropes-generate");
   d.regime = read_scalar_column<std::int32_t>(d.reader, "regime");
   d.anchor = read_scalar_column<std::int64_t>(d.reader, "anchor");
+  {  // each anchor's observational row: a regime without a joint is observational
+    std::set<std::int32_t> observational;
+    for (std::size_t r = 0; r < regimes.size(); ++r)
+      if (regimes[r].is_object() && regimes[r].contains("joint") && regimes[r]["joint"].is_null())
+        observational.insert(static_cast<std::int32_t>(r));
+    std::map<std::int64_t, std::int64_t> row_of_anchor;
+    for (std::int64_t r = 0; r < d.rows; ++r)
+      if (observational.count(d.regime[static_cast<std::size_t>(r)]) != 0)
+        row_of_anchor.emplace(d.anchor[static_cast<std::size_t>(r)], r);
+    d.observational_row.assign(static_cast<std::size_t>(d.rows), -1);
+    for (std::int64_t r = 0; r < d.rows; ++r) {
+      const auto it = row_of_anchor.find(d.anchor[static_cast<std::size_t>(r)]);
+      if (it != row_of_anchor.end())
+        d.observational_row[static_cast<std::size_t>(r)] = it->second;
+    }
+  }
   const nlohmann::json& interventions =
       d.reader.metadata_at("/distribution/interventions", "the distribution's interventions");
   for (const std::string& joint : config.joints) {

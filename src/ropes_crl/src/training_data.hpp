@@ -29,6 +29,9 @@ struct TrainingData {
   std::int64_t rows = 0;
   std::vector<std::int32_t> regime;
   std::vector<std::int64_t> anchor;
+  /// per row, the row of its anchor's observational sample (itself for an observational
+  /// row); -1 where the anchor has none in the dataset
+  std::vector<std::int64_t> observational_row;
   std::vector<JointRegimes> joints;  ///< in config.joints order
   std::set<std::int64_t> held_out_anchors;
   std::vector<std::int64_t> code_shape;  ///< [C, 8, 8]

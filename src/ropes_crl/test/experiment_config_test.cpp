@@ -2,6 +2,7 @@
 #include "ropes_crl/trainer.hpp"
 
 #include <gtest/gtest.h>
+#include <ropes_nn/gradcheck.hpp>
 
 #include <algorithm>
 #include <filesystem>
@@ -101,6 +102,34 @@ TEST(ExperimentConfig, ErrorsNameTheFileTheFieldAndTheValue) {
       ExperimentConfig::from_json(j, "test.json").ae1_training.occlusion_augmentation.probability,
       0.5);
   EXPECT_DOUBLE_EQ(c.ae1_training.occlusion_augmentation.probability, 0.0) << "off when absent";
+  // the difference loss (a variant, off when absent): {"weight" > 0}, an even number of
+  // samples a step, not beside the occlusion augmentation
+  j = c.raw;
+  j["ae1"]["difference_loss"] = 1;
+  EXPECT_NE(error_of(j).find("config.ae1.difference_loss: expected an object {\"weight\"}, got a "
+                             "number"),
+            std::string::npos)
+      << error_of(j);
+  j["ae1"]["difference_loss"] = {{"weight", 0}};
+  EXPECT_NE(error_of(j).find("config.ae1.difference_loss.weight: expected in (0, 1e6], got 0"),
+            std::string::npos)
+      << error_of(j);
+  j["ae1"]["difference_loss"] = {{"weight", 1}, {"floor", 1}};
+  EXPECT_NE(error_of(j).find("config.ae1.difference_loss"), std::string::npos) << error_of(j);
+  j["ae1"]["difference_loss"] = {{"weight", 4}};
+  j["ae1"]["batch_size"] = 6 * c.cameras + c.cameras;  // 7 samples
+  EXPECT_NE(error_of(j).find("is 7 samples a step; expected an even number"), std::string::npos)
+      << error_of(j);
+  j["ae1"]["batch_size"] = c.raw["ae1"]["batch_size"];
+  j["ae1"]["occlusion_augmentation"] = {{"probability", 0.5}, {"min_size", 8}, {"max_size", 16}};
+  EXPECT_NE(error_of(j).find("not combined with config.ae1.occlusion_augmentation"),
+            std::string::npos)
+      << error_of(j);
+  j["ae1"].erase("occlusion_augmentation");
+  EXPECT_EQ(error_of(j), "");
+  EXPECT_DOUBLE_EQ(ExperimentConfig::from_json(j, "test.json").ae1_training.difference_loss.weight,
+                   4.0);
+  EXPECT_DOUBLE_EQ(c.ae1_training.difference_loss.weight, 0.0) << "off when absent";
   j = c.raw;
   j["ae2"]["input_normalization"] = 1;
   EXPECT_NE(error_of(j).find("config.ae2.input_normalization"), std::string::npos) << error_of(j);
@@ -175,4 +204,43 @@ TEST(OcclusionAugmentation, PaintsOneSquareAnImageAtTheProbabilityAndTheSameOnes
   EXPECT_NEAR(static_cast<double>(painted), 200.0, 50.0);
   a.max_size = 33;
   EXPECT_THROW(occlusion_augmented(black, a, 7, 3), std::invalid_argument);
+}
+
+// AE1's difference loss on three hand-made pairs of 1x1x2 images, each value worked out by hand:
+//   pair 0: reconstruction (0.25^2 / 2 + 0.5^2 / 2) / 2 = 0.078125; change [0.5, 0] (its
+//           squared size 0.25 is raised to the floor 1); change error [0.25, -0.5] - [0.5, 0]
+//           = [-0.25, -0.5], squared 0.3125; with weight 2: 0.078125 + 0.625 = 0.703125
+//   pair 1: the image is its own observational one (mask 0): only the reconstruction,
+//           (0.5^2 / 2 + 0.5^2 / 2) / 2 = 0.125
+//   pair 2: reconstruction (0.5^2 / 2 + 0) / 2 = 0.0625; change [1, 1] (squared size 2);
+//           change error [1, 0.5] - [1, 1] = [0, -0.5], squared 0.25; 2 * 0.25 / 2 = 0.25;
+//           0.3125
+// and its gradient with respect to both reconstructions against central differences.
+TEST(Ae1DifferenceLoss, MatchesTheHandWorkedValuesAndFiniteDifferences) {
+  const nn::Shape shape{3, 1, 1, 2};
+  auto tensor = [](const nn::Shape& s, std::vector<float> v) {
+    return nn::Tensor(s, nn::Buffer(v.begin(), v.end()));
+  };
+  const nn::Tensor x = tensor(shape, {0.5f, 0.0f, 1.0f, 1.0f, 1.0f, 1.0f});
+  const nn::Tensor xo = tensor(shape, {0.0f, 0.0f, 1.0f, 1.0f, 0.0f, 0.0f});
+  const nn::Tensor recon = tensor(shape, {0.25f, 0.0f, 1.0f, 0.5f, 1.0f, 0.5f});
+  const nn::Tensor recon_o = tensor(shape, {0.0f, 0.5f, 1.0f, 0.5f, 0.0f, 0.0f});
+  const nn::Tensor mask = tensor(nn::Shape{3}, {1.0f, 0.0f, 1.0f});
+  const std::vector<float> v = ae1_difference_loss(recon, recon_o, x, xo, mask, 2.0).to_vector();
+  ASSERT_EQ(v.size(), 3u);
+  EXPECT_FLOAT_EQ(v[0], 0.703125f);
+  EXPECT_FLOAT_EQ(v[1], 0.125f);
+  EXPECT_FLOAT_EQ(v[2], 0.3125f);
+  const nn::GradCheckResult g = nn::check_gradients(
+      [&](const std::vector<nn::Tensor>& in) {
+        return ae1_difference_loss(in[0], in[1], x, xo, mask, 2.0);
+      },
+      {recon, recon_o});
+  EXPECT_TRUE(g.ok) << g.report;
+  try {
+    ae1_difference_loss(recon, recon_o, x, xo, tensor(nn::Shape{2}, {1.0f, 1.0f}), 2.0);
+    FAIL() << "a mask of another length was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("mask [2]"), std::string::npos) << e.what();
+  }
 }

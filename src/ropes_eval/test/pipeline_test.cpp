@@ -763,6 +763,16 @@ TEST_F(Pipeline, SuitesGenerateTheirTestDataOnceAndReportEverySuite) {
             std::string::npos)
       << mda;
 
+  // AE1 trained with the difference loss (a variant of AE1's objective, a config option like
+  // code_head): its AE1 differs from the clean run's and run.json records the option
+  const fs::path diff = dir_ / "suite_run_difference";
+  const Output td =
+      train(diff.string(), "--stages ae1 --set 'ae1.difference_loss={\"weight\": 4}'");
+  ASSERT_EQ(td.rc, 0) << td.text;
+  EXPECT_NE(bytes_of(diff / "ae1.safetensors"), bytes_of(run_dir / "ae1.safetensors"));
+  EXPECT_EQ(json_of(diff / "run.json")["config"]["ae1"]["difference_loss"]["weight"], 4)
+      << bytes_of(diff / "run.json");
+
   // two cameras: the OOD test set of the paper's OOD table, its appendix row beside ours
   const Output g =
       run(kGenerate + " --config tiny-2c --seed 0 --out " + (dir_ / "data2c").string());

@@ -41,6 +41,21 @@ struct OcclusionAugmentation {
   std::int64_t min_size = 0, max_size = 0;
 };
 
+/// A variant of AE1's objective, not the paper's (a plain MSE): each step draws half its
+/// images' samples as before and, for each, the observational sample of the same anchor (the
+/// other half; the step's image count is unchanged), and adds `weight` times the mean over
+/// the step's (sample, camera) pairs of
+///   || (x^_r - x^_o) - (x_r - x_o) ||^2 / max(|| x_r - x_o ||^2, 1)
+/// (x the image in [0, 1], x^ AE1's reconstruction, r the sample, o its anchor's
+/// observational sample; a pair whose sample is observational counts 0): the error of the
+/// change an intervention makes, relative to that change, so that every intervention counts
+/// alike however few pixels it moves. It uses the regimes (which samples share an anchor),
+/// as the LDRs do, and no labels. The config's optional ae1.difference_loss {"weight"}; off
+/// when absent. Not combined with the occlusion augmentation.
+struct DifferenceLoss {
+  double weight = 0;  ///< 0: off
+};
+
 /// Stage 1: AE1 on every camera image of the dataset, MSE.
 struct Ae1Training {
   std::int64_t batch_size = 32;  ///< images a step (a sample of C cameras is C images)
@@ -48,6 +63,7 @@ struct Ae1Training {
   std::int64_t micro_batch = 32;
   OptimizerConfig optimizer;
   OcclusionAugmentation occlusion_augmentation;
+  DifferenceLoss difference_loss;
 };
 
 /// Stage 2: one LDR per intervened joint, intervention 1 (label 0) against 2 (label 1),

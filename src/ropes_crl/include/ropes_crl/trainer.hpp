@@ -76,6 +76,18 @@ void train(const ExperimentConfig& config, const std::filesystem::path& data_dir
 nn::Tensor occlusion_augmented(const nn::Tensor& images, const OcclusionAugmentation& a,
                                std::uint64_t seed, std::uint64_t step);
 
+/// The per-pair loss of AE1's difference-loss variant (DifferenceLoss): for n images `x`
+/// [n, 1, S, S] (in [0, 1]), their anchors' observational images `xo`, AE1's reconstructions
+/// `recon` and `recon_o` of both and `mask` [n] (0 where an image is its own observational
+/// one, else 1), the [n] values
+///   (mean((recon - x)^2) + mean((recon_o - xo)^2)) / 2
+///     + weight * mask * sum(((recon - recon_o) - (x - xo))^2) / max(sum((x - xo)^2), 1),
+/// sums and means over an image's pixels; x, xo and mask are constants. Their mean over the
+/// step's pairs is the step's loss. Throws std::invalid_argument when the shapes differ.
+nn::Tensor ae1_difference_loss(const nn::Tensor& recon, const nn::Tensor& recon_o,
+                               const nn::Tensor& x, const nn::Tensor& xo, const nn::Tensor& mask,
+                               double weight);
+
 /// The version of ropes_crl ("0.1.0").
 const char* ropes_crl_version();
 
