@@ -171,10 +171,6 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
             std::to_string(samples) +
             " samples a step; expected an even number (half of them are the observational "
             "samples of the other half's anchors)");
-      if (c.ae1_training.occlusion_augmentation.probability > 0)
-        throw std::invalid_argument(at +
-                                    ": not combined with config.ae1.occlusion_augmentation; "
-                                    "choose one");
       c.ae1_training.difference_loss.weight = w;
     }
 

@@ -242,6 +242,9 @@ void train_ae1(const ExperimentConfig& config, const TrainingData& data, const f
   std::int64_t window_images = 0;
   const std::int64_t side = config.image_size;
   const std::uint64_t augmentation_seed = derive_seed(options.seed, "ae1.occlusion");
+  // the squares of the difference loss's observational partners: a stream of their own
+  const std::uint64_t partner_augmentation_seed =
+      derive_seed(options.seed, "ae1.occlusion.partners");
   while (adam.steps() < t.steps) {
     const nn::Batch batch = loader.next();
     const std::int64_t n = batch.size() * config.cameras;
@@ -256,7 +259,7 @@ void train_ae1(const ExperimentConfig& config, const TrainingData& data, const f
             : images;
     std::vector<nn::RowRange> parts;
     nn::BatchLoss loss;
-    Tensor observational, masks;  // outlive the loss, which reads them
+    Tensor observational, observational_inputs, masks;  // outlive the loss, which reads them
     if (pairs) {
       // each image with its anchor's observational image: micro-batches of pairs
       std::vector<std::int64_t> partners;
@@ -273,13 +276,20 @@ void train_ae1(const ExperimentConfig& config, const TrainingData& data, const f
       for (std::size_t i = 0; i < pixels.size(); ++i)
         pixels[i] = static_cast<float>(raw.data[i]) / 255.0f;
       observational = Tensor(Shape{n, 1, side, side}, std::move(pixels));
+      observational_inputs = t.occlusion_augmentation.probability > 0
+                                 ? occlusion_augmented(observational, t.occlusion_augmentation,
+                                                       partner_augmentation_seed,
+                                                       static_cast<std::uint64_t>(adam.steps()))
+                                 : observational;
       masks = Tensor(Shape{n}, std::move(mask));
       parts = nn::split_rows(n, std::max<std::int64_t>(1, t.micro_batch / 2));
       loss = nn::mean_loss([&](std::size_t i) {
         const std::int64_t b = parts[i].begin, e = parts[i].end;
+        // with the occlusion augmentation AE1 sees squares in both; the targets are clean
         const Tensor x = nn::slice(images, 0, b, e), xo = nn::slice(observational, 0, b, e);
-        return ae1_difference_loss(net(x), net(xo), x, xo, nn::slice(masks, 0, b, e),
-                                   difference_weight);
+        return ae1_difference_loss(net(nn::slice(inputs, 0, b, e)),
+                                   net(nn::slice(observational_inputs, 0, b, e)), x, xo,
+                                   nn::slice(masks, 0, b, e), difference_weight);
       });
     } else {
       parts = nn::split_rows(n, t.micro_batch);

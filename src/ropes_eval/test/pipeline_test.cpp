@@ -764,14 +764,22 @@ TEST_F(Pipeline, SuitesGenerateTheirTestDataOnceAndReportEverySuite) {
       << mda;
 
   // AE1 trained with the difference loss (a variant of AE1's objective, a config option like
-  // code_head): its AE1 differs from the clean run's and run.json records the option
-  const fs::path diff = dir_ / "suite_run_difference";
+  // code_head), alone and with the occlusion augmentation: each AE1 differs from the others
+  // and run.json records the option
+  const fs::path diff = dir_ / "suite_run_difference", diff_aug = dir_ / "suite_run_difference_aug";
   const Output td =
       train(diff.string(), "--stages ae1 --set 'ae1.difference_loss={\"weight\": 4}'");
   ASSERT_EQ(td.rc, 0) << td.text;
   EXPECT_NE(bytes_of(diff / "ae1.safetensors"), bytes_of(run_dir / "ae1.safetensors"));
   EXPECT_EQ(json_of(diff / "run.json")["config"]["ae1"]["difference_loss"]["weight"], 4)
       << bytes_of(diff / "run.json");
+  const Output tb = train(diff_aug.string(),
+                          "--stages ae1 --set 'ae1.difference_loss={\"weight\": 4}' --set "
+                          "'ae1.occlusion_augmentation={\"probability\": 0.5, \"min_size\": 4, "
+                          "\"max_size\": 16}'");
+  ASSERT_EQ(tb.rc, 0) << tb.text;
+  EXPECT_NE(bytes_of(diff_aug / "ae1.safetensors"), bytes_of(diff / "ae1.safetensors"));
+  EXPECT_NE(bytes_of(diff_aug / "ae1.safetensors"), bytes_of(aug / "ae1.safetensors"));
 
   // two cameras: the OOD test set of the paper's OOD table, its appendix row beside ours
   const Output g =

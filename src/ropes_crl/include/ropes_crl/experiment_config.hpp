@@ -51,7 +51,8 @@ struct OcclusionAugmentation {
 /// change an intervention makes, relative to that change, so that every intervention counts
 /// alike however few pixels it moves. It uses the regimes (which samples share an anchor),
 /// as the LDRs do, and no labels. The config's optional ae1.difference_loss {"weight"}; off
-/// when absent. Not combined with the occlusion augmentation.
+/// when absent. With the occlusion augmentation both images of a pair get squares (the
+/// partners' from a stream of their own) and the targets stay clean.
 struct DifferenceLoss {
   double weight = 0;  ///< 0: off
 };
