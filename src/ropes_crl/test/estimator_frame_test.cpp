@@ -51,8 +51,9 @@ void draw(const double q[2], std::int64_t camera, std::uint8_t* image) {
 const char* const kJoints[2] = {"a", "b"};
 
 // 40 anchors x (observational, do(a)=1, do(a)=2, do(b)=1, do(b)=2), the columns and the
-// metadata ropes-generate writes
-void write_dataset(const fs::path& dir, std::int64_t cameras) {
+// metadata ropes-generate writes; without `observational` the metadata names a joint for
+// regime 0, so no sample is observational
+void write_dataset(const fs::path& dir, std::int64_t cameras, bool observational = true) {
   const std::int64_t anchors = 40, regimes = 5, n = anchors * regimes;
   const std::int64_t pixels = cameras * kSize * kSize;
   nn::NpyArray images{nn::DType::kU8,
@@ -88,7 +89,7 @@ void write_dataset(const fs::path& dir, std::int64_t cameras) {
   for (std::int64_t c = 0; c < cameras; ++c)
     cams.push_back("cam" + std::to_string(c));
   list.push_back({{"name", "observational"},
-                  {"joint", nullptr},
+                  {"joint", observational ? nlohmann::json() : nlohmann::json("c")},
                   {"joint_index", nullptr},
                   {"intervention", nullptr}});
   nlohmann::json interventions;
@@ -325,6 +326,33 @@ std::vector<std::uint8_t> file_bytes(const fs::path& p) {
 // the model waiting for a free worker (the lambda = 0 AE2) never starts, and the first
 // failure reaches the caller; started again, the run ends in the bytes of a run never
 // stopped.
+// AE1's difference loss pairs each sample with its anchor's observational sample: a dataset
+// without observational samples is refused before AE1 trains, naming it, the anchor and the row
+TEST(DifferenceLoss, ADatasetWithoutObservationalSamplesIsRefused) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("ropes_crl_no_observational_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const ExperimentConfig config = few_steps("1c-small");
+  ASSERT_GT(config.ae1_training.difference_loss.weight, 0.0) << "1c-small uses the loss";
+  write_dataset(dir / "data", config.cameras, false);
+  TrainOptions options;
+  options.threads = 2;
+  try {
+    train(config, dir / "data", dir / "run", options);
+    ADD_FAILURE() << "a dataset without observational samples was trained on";
+  } catch (const std::invalid_argument& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("config.ae1.difference_loss pairs each sample with its anchor's "
+                        "observational sample; " +
+                        (dir / "data").string() + " has none for anchor 0 (row 0)"),
+              std::string::npos)
+        << what;
+  }
+  EXPECT_FALSE(fs::exists(dir / "run" / "ae1.safetensors"));
+  nn::set_num_threads(2);
+  fs::remove_all(dir);
+}
+
 TEST(SideBySideAe2s, OneFailureStopsTheOthersWithACheckpointAndTheRunResumes) {
   const fs::path dir =
       fs::temp_directory_path() / ("ropes_crl_side_by_side_" + std::to_string(::getpid()));
