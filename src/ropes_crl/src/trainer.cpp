@@ -2,6 +2,7 @@
 
 #include <ropes_nn/adam.hpp>
 #include <ropes_nn/batch_loader.hpp>
+#include <ropes_nn/build_info.hpp>
 #include <ropes_nn/checkpoint.hpp>
 #include <ropes_nn/npy.hpp>
 #include <ropes_nn/ops.hpp>
@@ -151,10 +152,11 @@ void note_checkpoint(const TrainOptions& options, const std::string& stage, std:
 nlohmann::json open_run(const ExperimentConfig& config, const TrainingData& data,
                         const fs::path& run_dir, const TrainOptions& options) {
   const fs::path run_json = run_dir / "run.json";
-  const nlohmann::json identity = {{"config", config.to_json()},
-                                   {"dataset", data.dataset_id},
-                                   {"seed", options.seed},
-                                   {"threads", options.threads}};
+  // not the thread count: every count gives the same bytes (ropes_nn/parallel.hpp), so a
+  // run may resume at another
+  const nlohmann::json identity = {
+      {"config", config.to_json()}, {"dataset", data.dataset_id}, {"seed", options.seed}};
+  const nlohmann::json provenance = nn::provenance(options.threads);
   if (fs::exists(run_json)) {
     nlohmann::json run = read_json_file(run_json);
     if (!run.is_object() || !run.contains("format") || run["format"] != kRunFormat)
@@ -171,6 +173,13 @@ nlohmann::json open_run(const ExperimentConfig& config, const TrainingData& data
                  : run[key].dump()) +
             ", this one: " + (key == "config" ? config.name : value.dump()) +
             "); choose another --out or remove it");
+    // resumed by another build: its weights may differ in the last bits from what the first
+    // build would have written; recorded beside the first
+    if (!nn::provenance_differences(run.value("provenance", nlohmann::json()), provenance)
+             .empty()) {
+      run["resumed_under"].push_back(provenance);
+      write_json_file(run_json, run);
+    }
     return run;
   }
   if (fs::exists(run_dir) && !fs::is_empty(run_dir))
@@ -181,6 +190,8 @@ nlohmann::json open_run(const ExperimentConfig& config, const TrainingData& data
   nlohmann::json run = identity;
   run["format"] = kRunFormat;
   run["format_version"] = kRunFormatVersion;
+  run["threads"] = options.threads;
+  run["provenance"] = provenance;
   run["data_dir"] = fs::absolute(data.dir).string();
   run["versions"] = {{"ropes_crl", ROPES_CRL_VERSION_STRING},
                      {"ropes_nn", ROPES_NN_VERSION_STRING}};

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "finite_check.hpp"
+#include "ropes_nn/parallel.hpp"
 
 namespace ropes::eval {
 
@@ -60,6 +61,8 @@ double calibration_mse(const AffineCalibration& fit,
 
 LinearCalibration fit_linear(const Eigen::Ref<const Eigen::MatrixXd>& latents,
                              const Eigen::Ref<const Eigen::VectorXd>& joint) {
+  // the same blocking of the products below on every CPU (see ropes_nn/parallel.hpp)
+  nn::pin_eigen_blocking();
   check_rows("fit_linear", latents.rows(), joint.size());
   detail::require_finite("fit_linear", "latents", latents);
   detail::require_finite("fit_linear", "joint", joint);

@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "finite_check.hpp"
+#include "ropes_nn/parallel.hpp"
 
 namespace ropes::eval {
 
@@ -20,6 +21,8 @@ Eigen::MatrixXd Pca::project(const Eigen::Ref<const Eigen::MatrixXd>& x) const {
 }
 
 Pca fit_pca(const Eigen::Ref<const Eigen::MatrixXd>& x, Eigen::Index k) {
+  // the same blocking of the products below on every CPU (see ropes_nn/parallel.hpp)
+  nn::pin_eigen_blocking();
   const Eigen::Index n = x.rows(), d = x.cols();
   if (n < 2 || k < 1 || k > d) {
     std::ostringstream message;

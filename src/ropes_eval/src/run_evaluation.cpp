@@ -3,11 +3,13 @@
 #include <ropes_crl/dataset_version.hpp>
 #include <ropes_crl/estimator.hpp>
 #include <ropes_nn/adam.hpp>
+#include <ropes_nn/build_info.hpp>
 #include <ropes_nn/dataset.hpp>
 #include <ropes_nn/demand.hpp>
 #include <ropes_nn/layers.hpp>
 #include <ropes_nn/npy.hpp>
 #include <ropes_nn/ops.hpp>
+#include <ropes_nn/parallel.hpp>
 #include <ropes_nn/train_step.hpp>
 
 #include <Eigen/Dense>
@@ -33,6 +35,7 @@ namespace ropes::eval {
 namespace fs = std::filesystem;
 using detail::difference;
 using detail::fmt;
+using detail::join;
 using nn::Shape;
 using nn::Tensor;
 
@@ -255,6 +258,13 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
   ev.setting = config.name.substr(0, config.name.rfind('-'));
   ev.joints = config.joints;
   ev.train_dataset_id = run.value("dataset", "");
+  ev.provenance = {{"training", run.value("provenance", nlohmann::json())},
+                   {"evaluation", nn::provenance(nn::num_threads())}};
+  if (ev.provenance["training"].is_null())
+    ev.provenance_differences.push_back("the run recorded no provenance (trained before it was)");
+  else
+    ev.provenance_differences =
+        nn::provenance_differences(ev.provenance["training"], ev.provenance["evaluation"]);
   if (const crl::OcclusionAugmentation& a = config.ae1_training.occlusion_augmentation;
       a.probability > 0)
     ev.extensions.push_back(
@@ -633,6 +643,8 @@ nlohmann::json RunEvaluation::to_json() const {
           {"train_dataset", train_dataset_id},
           {"joints", joints},
           {"extensions", extensions},
+          {"provenance", provenance},
+          {"provenance_differences", provenance_differences},
           {"protocol",
            {{"repeats", methods.empty() ? 0 : methods[0].repeats.size()},
             {"calibration_samples", calibration_samples},
@@ -672,6 +684,9 @@ std::string RunEvaluation::table() const {
   out << "ropes-eval: " << config_name << ", " << reps << " repeats of " << calibration_samples
       << " calibration and " << test_samples << " test samples (of " << observational_samples
       << " observational, dataset " << dataset_id.substr(0, 12) << "); mean ± std\n";
+  if (!provenance_differences.empty())
+    out << "note: trained under another build than this one (" << join(provenance_differences)
+        << "): the numbers compare to rounding, not bit for bit\n";
   out << "| joint | MCC | MSE rad^2 | paper MCC | paper MSE | best-assignment MCC / Spearman | "
          "MSE from all latents |";
   // PCA's components have no pairing with the joints: its column is the best assignment's
@@ -731,6 +746,16 @@ std::string RunEvaluation::markdown() const {
       << " observational samples (seed " << seed << "); mean ± std over the repeats; MSE in rad²\n";
   for (const std::string& e : extensions)
     out << "- **extension, not the paper's method**: " << e << "\n";
+  if (provenance.is_object() && provenance.contains("evaluation") &&
+      provenance["evaluation"].is_object()) {
+    const nlohmann::json& built = provenance["evaluation"];
+    out << "- build: " << built.value("isa_level", "?") << ", " << built.value("compiler", "?")
+        << ", Eigen " << built.value("eigen", "?") << ", revision " << built.value("revision", "?")
+        << ", " << built.value("threads", 0) << " thread(s)\n";
+  }
+  if (!provenance_differences.empty())
+    out << "- **trained under another build** (" << join(provenance_differences)
+        << "): the numbers compare to rounding, not bit for bit\n";
   out << "\n";
 
   out << "## MCC and MSE, laid out like the paper's Table 1\n\n| setup |";

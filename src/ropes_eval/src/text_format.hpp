@@ -23,6 +23,14 @@ inline std::string fmt(const std::optional<double>& v) {
   return v ? fmt(*v) : "--";
 }
 
+// the strings, separated by "; "
+inline std::string join(const std::vector<std::string>& parts) {
+  std::string out;
+  for (const std::string& p : parts)
+    out += (out.empty() ? "" : "; ") + p;
+  return out;
+}
+
 inline std::string plus_minus(double mean, double sd) {
   return fmt(mean) + " ± " + fmt(sd);
 }

@@ -6,6 +6,7 @@
 
 #include <nlohmann/json.hpp>
 #include <ropes_eval/run_evaluation.hpp>
+#include <ropes_nn/sha256.hpp>
 
 #include <signal.h>
 #include <sys/wait.h>
@@ -230,6 +231,32 @@ TEST_F(Pipeline, TinyRunIsDeterministicPinnedAndLearnsTheSparsityPattern) {
     sum += r["mcc"][0].get<double>();
   EXPECT_NEAR(results["methods"]["ropes"]["mcc"][0].get<double>(), sum / 3, 1e-12);
   EXPECT_TRUE(fs::exists(a / "calibration.json"));
+  // provenance: the build that trained and the one that evaluated, here the same
+  const nlohmann::json run_json = json_of(a / "run.json");
+  EXPECT_EQ(run_json["provenance"]["isa_level"], results["provenance"]["evaluation"]["isa_level"]);
+  EXPECT_EQ(run_json["provenance"]["threads"], 2);
+  EXPECT_TRUE(results["provenance_differences"].empty()) << results["provenance_differences"];
+  EXPECT_EQ(e.text.find("trained under another build"), std::string::npos) << e.text;
+  EXPECT_NE(md.find("- build: " + run_json["provenance"]["isa_level"].get<std::string>()),
+            std::string::npos)
+      << md;
+  // a run trained under another level: evaluated all the same, and said so
+  const fs::path c = dir_ / "run_other_level";
+  fs::copy(a, c, fs::copy_options::recursive);
+  nlohmann::json moved = run_json;
+  moved["provenance"]["isa_level"] = "x86-64-v3";
+  std::ofstream(c / "run.json") << moved.dump(2);
+  const Output ec =
+      run(kEval + " --run " + c.string() + " --data " + (dir_ / "data1").string() +
+          " --probe-steps 100 --repeats 3 --calibration-samples 20 --test-samples 20");
+  ASSERT_EQ(ec.rc, 0) << ec.text;
+  EXPECT_NE(
+      ec.text.find("note: trained under another build than this one (isa_level: x86-64-v3 vs " +
+                   run_json["provenance"]["isa_level"].get<std::string>() + ")"),
+      std::string::npos)
+      << ec.text;
+  EXPECT_NE(bytes_of(c / "results.md").find("- **trained under another build** (isa_level: "),
+            std::string::npos);
 
   // golden values
   double ae1_loss = 0, ae2_loss = 0;
@@ -284,6 +311,48 @@ TEST_F(Pipeline, TinyRunIsDeterministicPinnedAndLearnsTheSparsityPattern) {
     };
     EXPECT_LT(distance(r.back()), 0.5 * distance(r.front()))
         << joints[i] << ": first row " << r.front().dump() << ", last " << r.back().dump();
+  }
+}
+
+// What another machine of the same instruction-set level changes: the cache sizes Eigen
+// queries from the CPU, emulated with ROPES_EMULATE_CPU_CACHES, and the thread count. Two
+// machines: a Zen 3 core (32 KiB L1, 512 KiB L2) and one whose CPUID reports small caches
+// (8 KiB, 64 KiB, as some virtual machines do), small enough that Eigen would split the tiny
+// run's longest sums (256 pixels) differently. Neither may change a byte of any weight file or
+// code cache, nor a number of results.json. Checked by mutation, each making this test fail:
+// the reduction blocks sized by the thread count again (as before ropes_nn/parallel.hpp's
+// reduction blocks), and separately Eigen's queried blocking again (src/gemm.hpp's and the
+// process-wide pin undone).
+TEST_F(Pipeline, SameBytesWhateverTheCpuReportsAndAtAnyThreadCount) {
+  const std::string zen3 = "ROPES_EMULATE_CPU_CACHES=32768,524288,33554432 ";
+  const std::string small_caches = "ROPES_EMULATE_CPU_CACHES=8192,65536,1048576 ";
+  struct Variant {
+    std::string name, env, threads;
+  };
+  const std::vector<Variant> variants = {
+      {"here_2", "", "2"}, {"zen3_1", zen3, "1"}, {"small_caches_3", small_caches, "3"}};
+  std::vector<nlohmann::json> methods;
+  for (const Variant& v : variants) {
+    const fs::path out = dir_ / ("machines_" + v.name);
+    const Output t =
+        run(v.env + kTrain + " --config 1c-tiny --data " + (dir_ / "data0").string() + " --out " +
+            out.string() + " --threads " + v.threads + " --progress lines");
+    ASSERT_EQ(t.rc, 0) << v.name << ": " << t.text;
+    const Output e =
+        run(v.env + kEval + " --run " + out.string() + " --data " + (dir_ / "data1").string() +
+            " --probe-steps 100 --repeats 3 --calibration-samples 20 "
+            "--test-samples 20 --threads " +
+            v.threads);
+    ASSERT_EQ(e.rc, 0) << v.name << ": " << e.text;
+    methods.push_back(json_of(out / "results.json")["methods"]);
+    if (methods.size() == 1)
+      continue;
+    const fs::path here = dir_ / ("machines_" + variants[0].name);
+    // hashes, so that a failure prints two lines instead of two weight files
+    for (const char* f : kWeights)
+      EXPECT_EQ(ropes::nn::sha256_file(here / f), ropes::nn::sha256_file(out / f))
+          << f << " differs in " << v.name;
+    EXPECT_EQ(methods.back(), methods.front()) << "results.json's methods in " << v.name;
   }
 }
 
@@ -1004,15 +1073,13 @@ TEST_F(Pipeline, RopesRunResumesInsideItsStagesAndEndsWithTheTable) {
 
 // The `small` 1C preset end to end (label `slow`, about 8 minutes on 2 cores): `ropes-run
 // 1c-small` with seed 0, the id suite by the paper's protocol, every joint's mean MCC at or
-// above the floor measured on the datasets of sim_dataset_version 3 (the paper's TN variance)
-// with the preset's linear AE1 code and difference loss (src/ropes_crl/README.md, Results,
-// three training seeds by this protocol on this workspace's machine, AMD EPYC, CPU family 26:
-// joint 2 0.988 / 0.986 / 0.986, joint 4 0.945 / 0.958 / 0.972, joint 6 0.880 / 0.879 /
-// 0.886). ropes_nn is built with -march=native, so the trained weights depend on the CPU: the
-// floors are each joint's lowest value over the three seeds, rounded down, which seed 0 meets
-// with its own (0.988 / 0.945 / 0.880) and another CPU's seed 0 should meet as a fourth seed
-// would. The targets (the paper's 0.949 / 0.975 / 0.957) are met on joint 2 only.
-// Prints the measured values.
+// above a floor. The floors are each joint's lowest value measured on the datasets of
+// sim_dataset_version 3 with the preset's linear AE1 code and difference loss, rounded down:
+// three training seeds before the kernels' sums were fixed by the batch size (joint 2 0.988 /
+// 0.986 / 0.986, joint 4 0.945 / 0.958 / 0.972, joint 6 0.880 / 0.879 / 0.886) and seed 0
+// after (0.979 / 0.957 / 0.875; the same seed on other bits moves by up to 0.01, as another
+// seed would). Another CPU's seed 0 should meet them as a further seed would. The issue's
+// targets (the paper's 0.949 / 0.975 / 0.957) are met on joint 2 only. Prints the values.
 // Under AddressSanitizer the preset trains far slower (AE1 at 5.6 images/s: over 3 hours
 // for its 2,000 steps alone), and clang's -O1 float arithmetic is not the Release build's
 // that the floors were measured on. So a sanitizer build runs the same job at the same
@@ -1045,7 +1112,7 @@ TEST_F(Pipeline, SmallPresetOneCameraReachesTheMeasuredMcc) {
   const nlohmann::json results = json_of(out / "report" / "results.json");
   const nlohmann::json& ropes = results["suites"][0]["results"]["methods"]["ropes"];
   const std::vector<std::string> joints = {"panda_joint2", "panda_joint4", "panda_joint6"};
-  const double floors[] = {0.986, 0.944, 0.878};
+  const double floors[] = {0.978, 0.944, 0.875};
   ASSERT_EQ(ropes["mcc"].size(), joints.size()) << ropes.dump();
   for (std::size_t k = 0; k < joints.size(); ++k) {
     const double mcc = ropes["mcc"][k].get<double>();

@@ -59,7 +59,8 @@ options:
                         for one camera)
   --repeats R, --calibration-samples C, --test-samples N, --supervised LIST,
   --probe-steps N       as ropes-eval's
-  --threads T           compute threads (default 1; a resumed run must use the same T)
+  --threads T           compute threads (default 1; every T gives the same bytes, a run
+                        may resume at another)
   --progress MODE       bar, lines or auto (a bar on a terminal; the default)
 )";
 
@@ -168,11 +169,11 @@ int run(int argc, char** argv) {
   }
   // the state: what this directory is for, and the stages finished
   nlohmann::json state = read_state(state_file);
+  // not the thread count: every count gives the same bytes (ropes_nn/parallel.hpp)
   const nlohmann::json identity = {{"config", config.raw},
                                    {"dataset_config", dataset_config},
                                    {"seed", seed},
-                                   {"data_seed", data_seed},
-                                   {"threads", threads}};
+                                   {"data_seed", data_seed}};
   // the identity binds the directory once a stage has finished
   bool any_finished = false;
   if (state.contains("stages"))

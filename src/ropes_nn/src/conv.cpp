@@ -3,7 +3,6 @@
 //   dx = conv_input_grad(g, w)      the adjoint in x (also conv_transpose2d)
 //   dw = conv_weight_grad(x, g)     the adjoint in w
 // Each one's backward is written with the other two, so gradients of gradients work.
-#include <Eigen/Core>
 
 #include <algorithm>
 #include <atomic>
@@ -19,8 +18,6 @@
 namespace ropes::nn {
 
 namespace {
-
-using RowMajor = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
 // shapes and padding of one forward convolution x [n, c, h, w] * w [o, c, kh, kw]
 struct ConvGeometry {
@@ -127,32 +124,33 @@ Buffer conv_forward(const float* x, const float* w, const ConvGeometry& g) {
 Buffer conv_input_grad(const float* gy, const float* w, const ConvGeometry& g) {
   count_flops(g);
   Buffer dx(static_cast<std::size_t>(g.x_shape().numel()));
-  const Eigen::Map<const RowMajor> wm(w, g.o, g.patch());
   parallel_for(g.n, [&](int, std::int64_t begin, std::int64_t end) {
-    Buffer col_buffer(static_cast<std::size_t>(g.patch() * g.pixels()));
-    Eigen::Map<RowMajor> col(col_buffer.data(), g.patch(), g.pixels());
+    Buffer col(static_cast<std::size_t>(g.patch() * g.pixels()));
     for (std::int64_t i = begin; i < end; ++i) {
-      col.noalias() =
-          wm.transpose() * Eigen::Map<const RowMajor>(gy + i * g.o * g.pixels(), g.o, g.pixels());
+      // col [patch, pixels] = w^T [patch, o] * gy_i [o, pixels]
+      gemm(w, true, gy + i * g.o * g.pixels(), false, col.data(), g.patch(), g.o, g.pixels(),
+           false);
       col2im(col.data(), g, dx.data() + i * g.c * g.h * g.w);
     }
   });
   return dx;
 }
 
-// per-chunk partial sums over the batch, added in chunk order (deterministic per thread count)
+// one partial sum per reduction block of the batch (fixed by the batch size), added in block
+// order: the same bits at every thread count
 Buffer conv_weight_grad(const float* x, const float* gy, const ConvGeometry& g) {
   count_flops(g);
-  const int chunks = parallel_chunks(g.n);
   const std::size_t w_size = static_cast<std::size_t>(g.o * g.patch());
-  std::vector<Buffer> partial(static_cast<std::size_t>(chunks), Buffer(w_size, 0.0f));
-  parallel_for(g.n, chunks, [&](int chunk, std::int64_t begin, std::int64_t end) {
+  std::vector<Buffer> partial(static_cast<std::size_t>(reduction_blocks(g.n)),
+                              Buffer(w_size, 0.0f));
+  for_each_reduction_block(g.n, [&](int block, std::int64_t begin, std::int64_t end) {
     Buffer col(static_cast<std::size_t>(g.patch() * g.pixels()));
-    Eigen::Map<RowMajor> dw(partial[static_cast<std::size_t>(chunk)].data(), g.o, g.patch());
+    float* dw = partial[static_cast<std::size_t>(block)].data();
     for (std::int64_t i = begin; i < end; ++i) {
       im2col(x + i * g.c * g.h * g.w, g, col.data());
-      dw.noalias() += Eigen::Map<const RowMajor>(gy + i * g.o * g.pixels(), g.o, g.pixels()) *
-                      Eigen::Map<const RowMajor>(col.data(), g.patch(), g.pixels()).transpose();
+      // dw [o, patch] += gy_i [o, pixels] * col^T [pixels, patch]
+      gemm(gy + i * g.o * g.pixels(), false, col.data(), true, dw, g.o, g.pixels(), g.patch(),
+           true);
     }
   });
   for (std::size_t c = 1; c < partial.size(); ++c) {

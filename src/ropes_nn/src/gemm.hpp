@@ -1,20 +1,51 @@
 #pragma once
-// Private: the matrix product of the convolution kernels, without heap allocation.
+// Private: the matrix products of ropes_nn's kernels, without heap allocation, with the same
+// bits on every CPU of an instruction-set level and at every thread count.
 #include <cstdint>
 
 namespace ropes::nn {
 
-// c [m, n] = a [m, k] * b [k, n], all row-major and contiguous: the value Eigen's
-// `c.noalias() = a * b` computes on one thread, bit for bit, at every thread count.
+// c [m, n] = op(a) [m, k] * op(b) [k, n], or c += when `accumulate`. All three are row-major
+// and contiguous; op(a) is a, stored [m, k], or the transpose of a stored [k, m] when
+// `a_transposed` (the same for b: [k, n], or [n, k] transposed).
 //
-// Why not that expression: for a large product Eigen packs the operands into blocks it takes
-// from the heap on every call, which made a warm single-frame inference allocate. Here the
-// same kernel (Eigen's general_matrix_matrix_product with the blocking sizes Eigen would
-// choose) runs with its blocks from a per-thread workspace that only grows. Outside a
-// parallel region the rows of `a` are split over the threads in multiples of 16 (whole
-// register panels of the kernel), so each output element is computed by the same
-// instructions as on one thread. Small and vector-shaped products go to Eigen's expression,
-// which allocates nothing for them.
-void gemm(const float* a, const float* b, float* c, std::int64_t m, std::int64_t k, std::int64_t n);
+// The arithmetic is Eigen's general_matrix_matrix_product (its packing and register
+// kernel), with two things fixed by the workspace instead of by the machine:
+// - the blocking (kc, mc, nc): Eigen evaluates its heuristic at the cache sizes it queries
+//   from the CPU, and kc decides in how many runs the sum over k is split, mc which
+//   register panel (and so which order of operations) each output takes. Here the same
+//   heuristic runs at fixed reference sizes (reference_blocking below).
+// - the threads: outside a parallel region the rows of op(a) are split over the threads in
+//   multiples of 16 (whole register panels), with the blocking of the whole product, so
+//   each output element is computed by the same instructions at every thread count.
+// Eigen's own threading is never used (set_num_threads keeps Eigen at one thread).
+// Small and vector-shaped products go to Eigen's coefficient-wise and GEMV expressions,
+// which depend on neither. The packing blocks come from a per-thread workspace that only
+// grows, so a warm inference does not allocate.
+void gemm(const float* a, bool a_transposed, const float* b, bool b_transposed, float* c,
+          std::int64_t m, std::int64_t k, std::int64_t n, bool accumulate);
+
+inline void gemm(const float* a, const float* b, float* c, std::int64_t m, std::int64_t k,
+                 std::int64_t n) {
+  gemm(a, false, b, false, c, m, k, n, false);
+}
+
+// The blocking reference: the cache sizes Eigen 3.4 queries on the AMD Zen 5 machine the
+// workspace's tables were measured on (L1d 48 KiB, L2 1 MiB; L3 only needs to be non-zero).
+struct CacheSizes {
+  std::int64_t l1, l2, l3;
+};
+constexpr CacheSizes kReferenceCaches{49152, 1048576, 532676608};
+
+// Eigen 3.4's one-thread blocking heuristic (evaluateProductBlockingSizesHeuristic, for
+// float, KcFactor 1) evaluated at `caches` instead of the CPU's: on entry k, m, n are the
+// product's depth, rows and columns of Eigen's column-major view; on return kc, mc, nc.
+void reference_blocking(std::int64_t& k, std::int64_t& m, std::int64_t& n,
+                        const CacheSizes& caches = kReferenceCaches);
+
+// For tests: what Eigen's own heuristic (computeProductBlockingSizes, one thread) gives with
+// its cache sizes set to `caches`, compiled as the kernels are. It sets Eigen's process-wide
+// cache sizes, computes and restores them: not for use while other threads run products.
+void eigen_blocking_at(const CacheSizes& caches, std::int64_t& k, std::int64_t& m, std::int64_t& n);
 
 }  // namespace ropes::nn

@@ -63,21 +63,21 @@ class GroupNormNode final : public Node {
 
  private:
   // dx = rstd (dxhat - mean(dxhat) - xhat mean(dxhat xhat)) per group, dxhat = gy gamma;
-  // dgamma = sum gy xhat, dbeta = sum gy over samples and pixels (per-chunk partial sums
-  // added in chunk order)
+  // dgamma = sum gy xhat, dbeta = sum gy over samples and pixels (per-block partial sums
+  // added in block order, blocks fixed by the batch size)
   std::vector<Tensor> fused_backward(const Tensor& gy) {
     const Tensor& x = inputs[0];
     const float* xp = x.data();
     const float* gp = gy.data();
     const float* gamma = inputs[1].data();
     Buffer dx(static_cast<std::size_t>(x.numel()));
-    const int chunks = parallel_chunks(l_.n);
-    std::vector<std::vector<double>> dgamma(static_cast<std::size_t>(chunks),
+    const int blocks = reduction_blocks(l_.n);
+    std::vector<std::vector<double>> dgamma(static_cast<std::size_t>(blocks),
                                             std::vector<double>(static_cast<std::size_t>(l_.c)));
     std::vector<std::vector<double>> dbeta = dgamma;
-    parallel_for(l_.n, chunks, [&](int chunk, std::int64_t begin, std::int64_t end) {
-      auto& dg = dgamma[static_cast<std::size_t>(chunk)];
-      auto& db = dbeta[static_cast<std::size_t>(chunk)];
+    for_each_reduction_block(l_.n, [&](int block, std::int64_t begin, std::int64_t end) {
+      auto& dg = dgamma[static_cast<std::size_t>(block)];
+      auto& db = dbeta[static_cast<std::size_t>(block)];
       for (std::int64_t i = begin; i < end; ++i) {
         for (std::int64_t g = 0; g < l_.groups; ++g) {
           const std::size_t stat = static_cast<std::size_t>(i * l_.groups + g);
@@ -116,7 +116,7 @@ class GroupNormNode final : public Node {
         dbeta_total(static_cast<std::size_t>(l_.c));
     for (std::int64_t ch = 0; ch < l_.c; ++ch) {
       double sg = 0, sb = 0;
-      for (int c = 0; c < chunks; ++c) {
+      for (int c = 0; c < blocks; ++c) {
         sg += dgamma[static_cast<std::size_t>(c)][static_cast<std::size_t>(ch)];
         sb += dbeta[static_cast<std::size_t>(c)][static_cast<std::size_t>(ch)];
       }

@@ -1,13 +1,12 @@
 #include "ropes_nn/ops.hpp"
 
-#include <Eigen/Core>
-
 #include <algorithm>
 #include <cmath>
 #include <functional>
 #include <stdexcept>
 #include <string>
 
+#include "gemm.hpp"
 #include "ropes_nn/parallel.hpp"
 #include "tensor_impl.hpp"
 
@@ -604,12 +603,10 @@ Tensor matmul(const Tensor& a, const Tensor& b) {
     throw std::invalid_argument("matmul: shapes " + a.shape().str() + " and " + b.shape().str() +
                                 "; expected [m, k] and [k, n]");
   }
-  using RowMajor = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
   const std::int64_t m = a.shape()[0], k = a.shape()[1], n = b.shape()[1];
   Buffer r(static_cast<std::size_t>(m * n));
   add_flops(static_cast<std::uint64_t>(2 * m * k * n));
-  Eigen::Map<RowMajor>(r.data(), m, n).noalias() =
-      Eigen::Map<const RowMajor>(a.data(), m, k) * Eigen::Map<const RowMajor>(b.data(), k, n);
+  gemm(a.data(), b.data(), r.data(), m, k, n);
   return record(Shape{m, n}, std::move(r), {a, b}, "matmul", [](const Grads& in, const Tensor& g) {
     Grads grads(2);
     if (in[0].requires_grad())

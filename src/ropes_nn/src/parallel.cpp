@@ -5,13 +5,14 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cstdio>
 #include <cstdlib>
 #include <exception>
-#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <thread>
 
+#include "gemm.hpp"
 #include "ropes_nn/demand.hpp"
 
 namespace ropes::nn {
@@ -26,28 +27,41 @@ int default_threads() {
   return std::max(1u, std::thread::hardware_concurrency());
 }
 
-// serialises the writes of Eigen's own (plain int) thread setting
-std::mutex g_eigen_mutex;
-
 std::atomic<int>& thread_setting() {
   static std::atomic<int> threads{[] {
-    const int n = default_threads();
-    const std::lock_guard<std::mutex> lock(g_eigen_mutex);
-    Eigen::setNbThreads(n);
-    return n;
+    pin_eigen_blocking();
+    // Eigen never threads a product of ropes_nn's (its parallel GEMM blocks and splits the
+    // work by the thread count); the kernels split work themselves (src/gemm.hpp)
+    Eigen::setNbThreads(1);
+    return default_threads();
   }()};
   return threads;
 }
 }  // namespace
 
+void pin_eigen_blocking() {
+  static const bool pinned = [] {
+    if (const char* emulate = std::getenv("ROPES_EMULATE_CPU_CACHES")) {
+      long long l1 = 0, l2 = 0, l3 = 0;
+      char tail = 0;
+      if (std::sscanf(emulate, "%lld,%lld,%lld%c", &l1, &l2, &l3, &tail) != 3 || l1 <= 0 ||
+          l2 <= 0 || l3 < 0) {
+        throw std::invalid_argument(std::string("ROPES_EMULATE_CPU_CACHES: \"") + emulate +
+                                    "\"; expected three byte counts \"l1,l2,l3\", l1 and l2 > 0");
+      }
+      Eigen::setCpuCacheSizes(l1, l2, l3);
+    }
+    Eigen::setCpuCacheSizes(kReferenceCaches.l1, kReferenceCaches.l2, kReferenceCaches.l3);
+    return true;
+  }();
+  (void)pinned;
+}
+
 void set_num_threads(int n) {
   if (n < 1) {
     throw std::invalid_argument("set_num_threads: " + std::to_string(n) + "; expected >= 1");
   }
-  std::atomic<int>& setting = thread_setting();
-  const std::lock_guard<std::mutex> lock(g_eigen_mutex);
-  setting.store(n);
-  Eigen::setNbThreads(n);
+  thread_setting().store(n);
 }
 
 int num_threads() {
@@ -56,6 +70,10 @@ int num_threads() {
 
 int parallel_chunks(std::int64_t n) {
   return static_cast<int>(std::max<std::int64_t>(1, std::min<std::int64_t>(num_threads(), n)));
+}
+
+int reduction_blocks(std::int64_t n) {
+  return static_cast<int>(std::max<std::int64_t>(1, std::min(kReductionBlocks, n)));
 }
 
 void detail::parallel_for_chunks(std::int64_t n, int chunks, ChunkBody body) {

@@ -134,6 +134,13 @@ struct RunEvaluation {
   std::vector<double> ldr_accuracy, bayes_accuracy;
   std::vector<double> paper_mcc, paper_mse;  ///< NaN where the paper gives none
   nlohmann::json calibration;  ///< ropes' affine fit of repeat 0 (an Estimator Calibration)
+  /// {"training": run.json's provenance (null for a run that recorded none), "evaluation":
+  /// this process's} (ropes_nn/build_info.hpp)
+  nlohmann::json provenance;
+  /// What differs between the two builds in what decides the bits ("isa_level: a vs b");
+  /// empty when the run was trained by a build that gives this one's bytes. The table and
+  /// results.md then say that the numbers compare to rounding, not bit for bit.
+  std::vector<std::string> provenance_differences;
   nlohmann::json to_json() const;
   /// The per-joint table, plain text, ROPES beside the paper and the baselines.
   std::string table() const;

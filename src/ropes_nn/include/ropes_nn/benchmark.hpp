@@ -12,7 +12,8 @@ namespace ropes::nn::bench {
 /// The median seconds of `repeats` calls of `step`, after one warm-up call.
 double median_seconds(const std::function<void()>& step, int repeats);
 
-/// The best of a few 1024^3 single-precision products through Eigen, in GFLOP/s.
+/// The best of a few 1024^3 single-precision products through the kernels' GEMM (Eigen's
+/// register kernel at the workspace's blocking, on num_threads() threads), in GFLOP/s.
 double gemm_peak_gflops();
 
 /// Runs `/usr/bin/python3 script args` as the PyTorch peer at its best on these machines:

@@ -2,13 +2,12 @@
 /// @file parallel.hpp
 /// Threads of ropes_nn's kernels (OpenMP underneath).
 ///
-/// Determinism: work is split into num_threads() contiguous chunks of fixed bounds, and
-/// partial sums are combined in chunk order, so results are bit-identical run to run for
-/// the same thread count. Across thread counts, sums that are split (the weight gradient of a
-/// convolution over the batch; Eigen's matrix products in matmul and in the convolutions'
-/// backward) are added in another order: results agree to float rounding (relative
-/// differences of order 1e-6 per reduction), not bitwise. A convolution's forward gives the
-/// same bits at every thread count.
+/// Determinism: a kernel's result has the same bits at every thread count. Work is split into
+/// contiguous chunks of fixed bounds; a sum over a batch keeps one partial sum per reduction
+/// block, whose bounds depend on the batch size alone (for_each_reduction_block), and adds the
+/// blocks in order; matrix products split their rows in whole register panels (src/gemm.hpp)
+/// and never use Eigen's own threads. The thread count only decides which thread computes
+/// which block.
 
 #include <cstdint>
 
@@ -37,13 +36,27 @@ class ChunkBody {
 void parallel_for_chunks(std::int64_t n, int chunks, ChunkBody body);
 }  // namespace detail
 
-/// Sets the thread count (>= 1); also Eigen's. Default: the ROPES_NUM_THREADS environment
+/// Sets the thread count (>= 1). Default: the ROPES_NUM_THREADS environment
 /// variable if set, else the number of hardware threads. Throws std::invalid_argument for
 /// n < 1. Safe to call while other threads run kernels: they see the old or the new count
 /// (an atomic), never a torn value, and a kernel that has sized its per-chunk buffers keeps
 /// its own chunk count (see parallel_chunks).
 void set_num_threads(int n);
 int num_threads();
+
+/// Pins the cache sizes Eigen blocks its matrix products with, process-wide, to the
+/// workspace's reference (those of the Zen 5 machine the tables were measured on: 48 KiB L1,
+/// 1 MiB L2). Eigen otherwise queries them from the CPU, and the blocking decides in how many
+/// runs a long sum is split: a product outside the kernels (ropes_eval's PCA and
+/// calibrations) would then differ in its last bits from one CPU to another. ropes_nn's own
+/// products do not read the setting (src/gemm.hpp). Idempotent and thread-safe; the first
+/// use of num_threads or set_num_threads calls it. It changes only how fast another Eigen
+/// product of the process runs, never its value beyond rounding.
+///
+/// For tests: with ROPES_EMULATE_CPU_CACHES="l1,l2,l3" (bytes) set, Eigen is first told those
+/// sizes, as another CPU would report them, and then pinned: a run under it must give the
+/// same bits as without.
+void pin_eigen_blocking();
 
 /// The number of chunks parallel_for(n, body) splits [0, n) into at the current thread
 /// count: min(num_threads(), n), and at least 1. A kernel that keeps one partial buffer per
@@ -68,6 +81,27 @@ template <typename F>
 void parallel_for(std::int64_t n, const F& body) {
   if (n > 0)
     detail::parallel_for_chunks(n, parallel_chunks(n), detail::ChunkBody(body));
+}
+
+/// The most blocks a reduction over n items is split into: up to this many threads share it.
+constexpr std::int64_t kReductionBlocks = 16;
+
+/// The number of blocks a reduction over n items keeps partial sums for: min(n, 16), at
+/// least 1. It depends on n alone, so the sum has the same bits at every thread count.
+int reduction_blocks(std::int64_t n);
+
+/// Calls body(block, begin, end) for block = 0 .. reduction_blocks(n) - 1 (block b covers
+/// [n b / blocks, n (b + 1) / blocks)), the blocks spread over the threads. The caller keeps
+/// one partial sum per block and adds them in block order.
+template <typename F>
+void for_each_reduction_block(std::int64_t n, const F& body) {
+  if (n <= 0)
+    return;
+  const int blocks = reduction_blocks(n);
+  parallel_for(blocks, [&](int, std::int64_t first, std::int64_t last) {
+    for (std::int64_t b = first; b < last; ++b)
+      body(static_cast<int>(b), n * b / blocks, n * (b + 1) / blocks);
+  });
 }
 
 }  // namespace ropes::nn
