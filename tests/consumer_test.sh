@@ -19,7 +19,29 @@ echo "== consumer: find_package(ropes_nn 0.1) and find_package(ropes_eval 0.1)"
 cmake -S "$here/consumer" -B "$work/ok" -DCMAKE_BUILD_TYPE=Release > "$work/ok.log" 2>&1 \
   || { cat "$work/ok.log"; exit 1; }
 cmake --build "$work/ok" > "$work/ok-build.log" 2>&1 || { cat "$work/ok-build.log"; exit 1; }
-"$work/ok/ropes_consumer"
+"$work/ok/ropes_consumer" | tee "$work/default.out"
+
+echo "== consumer: ROPES_ISA=v3, the kernels an AVX2-only CPU runs (when this CPU has AVX2)"
+if grep -qw avx2 /proc/cpuinfo && grep -q "build dispatch" "$work/default.out"; then
+  ROPES_ISA=v3 "$work/ok/ropes_consumer" | tee "$work/v3.out"
+  grep -q "kernels x86-64-v3 " "$work/v3.out" \
+    || { echo "FAIL: ROPES_ISA=v3 did not run the v3 kernels" >&2; exit 1; }
+  # another level orders the sums otherwise: the same code to float rounding, not bit for bit
+  a=$(sed -n 's/.*checksum \(.*\)/\1/p' "$work/default.out")
+  b=$(sed -n 's/.*checksum \(.*\)/\1/p' "$work/v3.out")
+  awk -v a="$a" -v b="$b" 'BEGIN { d = a - b; if (d < 0) d = -d; s = (a < 0 ? -a : a);
+    exit !(d <= 1e-3 * (s > 1 ? s : 1)) }' \
+    || { echo "FAIL: the v3 checksum $b is far from the default's $a" >&2; exit 1; }
+  echo "== consumer: ROPES_ISA=v9 is refused, naming the levels"
+  if ROPES_ISA=v9 "$work/ok/ropes_consumer" > "$work/v9.out" 2>&1; then
+    echo "FAIL: ROPES_ISA=v9 ran" >&2
+    exit 1
+  fi
+  grep -q "ROPES_ISA=v9: not a level of this build; expected one of v4, v3" "$work/v9.out" \
+    || { cat "$work/v9.out"; echo "FAIL: no message naming the levels" >&2; exit 1; }
+else
+  echo "(skipped: no AVX2 here, or not a dispatch build)"
+fi
 
 echo "== consumer: the metrics link no renderer (neither ropes_sim nor OSMesa)"
 link="$work/ok/CMakeFiles/ropes_consumer.dir/link.txt"

@@ -1,12 +1,16 @@
 // Uses ropes_nn, ropes_crl and ropes_eval from their install space: draws two correlated
 // samples and checks their correlation and best assignment, and builds the networks of an installed
 // ROPES config, so linking and running the libraries (and finding installed configs) is exercised.
+// Encodes a batch with AE1 (the kernels' GEMM) and prints the instruction-set level the kernels
+// ran at and a checksum of the code: consumer_test.sh runs it again with ROPES_ISA=v3.
 #include <ropes_crl/experiment_config.hpp>
 #include <ropes_crl/networks.hpp>
 #include <ropes_eval/correlation.hpp>
+#include <ropes_nn/build_info.hpp>
 #include <ropes_nn/philox.hpp>
 
 #include <cstdio>
+#include <vector>
 
 int main() {
   ropes::nn::PhiloxStream rng(/*seed=*/5, /*stream=*/0);
@@ -32,6 +36,18 @@ int main() {
   std::printf("consumer: %s: AE1 %lld parameters, AE2 %lld\n", config.name.c_str(),
               static_cast<long long>(ae1.parameter_count()),
               static_cast<long long>(ae2.parameter_count()));
+  ae1.initialize(7);
+  std::vector<float> pixels(static_cast<std::size_t>(4 * config.image_size * config.image_size));
+  for (float& v : pixels)
+    v = static_cast<float>(rng.uniform_double());
+  const ropes::nn::Tensor code = ae1.encode(
+      ropes::nn::Tensor(ropes::nn::Shape{4, 1, config.image_size, config.image_size}, pixels));
+  double checksum = 0;
+  for (float v : code.to_vector())
+    checksum += v;
+  std::printf("consumer: kernels %s (build %s, baseline %s); AE1 code checksum %.6f\n",
+              ropes::nn::build_info().isa_level.c_str(), ropes::nn::build_info().isa_build.c_str(),
+              ropes::nn::build_info().isa_baseline.c_str(), checksum);
   const bool swapped = best.latent_of_joint[0] == 1 && best.latent_of_joint[1] == 0;
   return r > 0.55 && r < 0.65 && swapped && ae1.parameter_count() > 0 ? 0 : 1;
 }

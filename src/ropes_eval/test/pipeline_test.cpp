@@ -6,6 +6,7 @@
 
 #include <nlohmann/json.hpp>
 #include <ropes_eval/run_evaluation.hpp>
+#include <ropes_nn/build_info.hpp>
 #include <ropes_nn/sha256.hpp>
 
 #include <signal.h>
@@ -108,12 +109,6 @@ Killed run_until_killed(const std::vector<std::string>& args, const std::string&
   return k;
 }
 
-// see TinyRunIsDeterministicPinnedAndLearnsTheSparsityPattern
-constexpr double kGoldenAe1Loss = 0.113216221;
-constexpr double kGoldenAe2Loss = 0.0401015729;
-// |Pearson| of latent 0 and joint 2, the mean of 3 protocol repeats: a pin of the latents
-constexpr double kGoldenMcc2 = 0.456167994;
-
 // see TinyRunIsDeterministicPinnedAndLearnsTheSparsityPattern: results.json's
 // methods[method][what][joint] of the tiny run, pins of this code (regenerate with
 // ROPES_PRINT_GOLDEN=1). The measures behind them have their witnesses in the unit tests:
@@ -124,30 +119,70 @@ struct GoldenMetric {
   std::size_t joint;
   double value;
 };
-const GoldenMetric kGoldenMetrics[] = {{"ropes", "mcc", 0, 0.456167994},
-                                       {"ropes", "mcc", 1, 0.227918431},
-                                       {"ropes", "mcc", 2, 0.10787409},
-                                       {"ropes", "mse", 0, 0.472833846},
-                                       {"ropes", "mse", 1, 0.449637805},
-                                       {"ropes", "mse", 2, 0.560052519},
-                                       {"lambda0_autoencoder", "mcc", 0, 0.264483052},
-                                       {"lambda0_autoencoder", "mcc", 1, 0.353710566},
-                                       {"lambda0_autoencoder", "mcc", 2, 0.0818860405},
-                                       {"lambda0_autoencoder", "mse", 0, 0.65394048},
-                                       {"lambda0_autoencoder", "mse", 1, 0.422424804},
-                                       {"lambda0_autoencoder", "mse", 2, 0.519402985},
-                                       {"ldr_logit", "mcc", 0, 0.272186249},
-                                       {"ldr_logit", "mcc", 1, 0.16398668},
-                                       {"ldr_logit", "mcc", 2, 0.129306625},
-                                       {"ldr_logit", "mse", 0, 0.65760388},
-                                       {"ldr_logit", "mse", 1, 0.446747958},
-                                       {"ldr_logit", "mse", 2, 0.510248104},
-                                       {"pca_of_code", "mcc", 0, 0.712476469},
-                                       {"pca_of_code", "mcc", 1, 0.088742978},
-                                       {"pca_of_code", "mcc", 2, 0.068129872},
-                                       {"pca_of_code", "mse", 0, 0.310193566},
-                                       {"pca_of_code", "mse", 1, 0.459280819},
-                                       {"pca_of_code", "mse", 2, 0.492934533}};
+// one instruction-set level's pins: AE1's loss at step 30, AE2 panda_joint4's at step 200,
+// the SHA-256 of the weight files' SHA-256s (kWeights, in order), and every metric
+struct LevelGolden {
+  const char* level;  // build_info().isa_level
+  double ae1_loss, ae2_loss;
+  const char* weights;
+  std::vector<GoldenMetric> metrics;
+};
+const LevelGolden kGoldenV4{"x86-64-v4",
+                            0.113216221,
+                            0.040101584,
+                            "e8404d605bf50c9a4c6342c654ef3880ab9f756c93ad910b74ac70fb6eafa9b4",
+                            {{"ropes", "mcc", 0, 0.456168652},
+                             {"ropes", "mcc", 1, 0.227917646},
+                             {"ropes", "mcc", 2, 0.107873766},
+                             {"ropes", "mse", 0, 0.472833333},
+                             {"ropes", "mse", 1, 0.449637728},
+                             {"ropes", "mse", 2, 0.560052478},
+                             {"lambda0_autoencoder", "mcc", 0, 0.264482183},
+                             {"lambda0_autoencoder", "mcc", 1, 0.353710983},
+                             {"lambda0_autoencoder", "mcc", 2, 0.0818856499},
+                             {"lambda0_autoencoder", "mse", 0, 0.653940522},
+                             {"lambda0_autoencoder", "mse", 1, 0.422424644},
+                             {"lambda0_autoencoder", "mse", 2, 0.519403107},
+                             {"ldr_logit", "mcc", 0, 0.272186584},
+                             {"ldr_logit", "mcc", 1, 0.16398695},
+                             {"ldr_logit", "mcc", 2, 0.129306763},
+                             {"ldr_logit", "mse", 0, 0.657603481},
+                             {"ldr_logit", "mse", 1, 0.446747958},
+                             {"ldr_logit", "mse", 2, 0.510248015},
+                             {"pca_of_code", "mcc", 0, 0.712476393},
+                             {"pca_of_code", "mcc", 1, 0.0887425802},
+                             {"pca_of_code", "mcc", 2, 0.0681295728},
+                             {"pca_of_code", "mse", 0, 0.31019361},
+                             {"pca_of_code", "mse", 1, 0.459280961},
+                             {"pca_of_code", "mse", 2, 0.492934456}}};
+const LevelGolden kGoldenV3{"x86-64-v3",
+                            0.113216221,
+                            0.0401015654,
+                            "5a66d8b1f4cf78353fb44e0bf3144f39c185a8f770bdbc99d50b015cc1fb386c",
+                            {{"ropes", "mcc", 0, 0.456168163},
+                             {"ropes", "mcc", 1, 0.2279182},
+                             {"ropes", "mcc", 2, 0.107874219},
+                             {"ropes", "mse", 0, 0.47283385},
+                             {"ropes", "mse", 1, 0.449638171},
+                             {"ropes", "mse", 2, 0.560053059},
+                             {"lambda0_autoencoder", "mcc", 0, 0.264483724},
+                             {"lambda0_autoencoder", "mcc", 1, 0.353710995},
+                             {"lambda0_autoencoder", "mcc", 2, 0.081886382},
+                             {"lambda0_autoencoder", "mse", 0, 0.653939909},
+                             {"lambda0_autoencoder", "mse", 1, 0.422424581},
+                             {"lambda0_autoencoder", "mse", 2, 0.519403275},
+                             {"ldr_logit", "mcc", 0, 0.272187077},
+                             {"ldr_logit", "mcc", 1, 0.163986634},
+                             {"ldr_logit", "mcc", 2, 0.129306633},
+                             {"ldr_logit", "mse", 0, 0.657603251},
+                             {"ldr_logit", "mse", 1, 0.44674796},
+                             {"ldr_logit", "mse", 2, 0.510248046},
+                             {"pca_of_code", "mcc", 0, 0.712476637},
+                             {"pca_of_code", "mcc", 1, 0.0887423579},
+                             {"pca_of_code", "mcc", 2, 0.0681295996},
+                             {"pca_of_code", "mse", 0, 0.31019329},
+                             {"pca_of_code", "mse", 1, 0.459280916},
+                             {"pca_of_code", "mse", 2, 0.492934478}}};
 
 const std::string kGenerate = ROPES_GENERATE_EXE, kTrain = ROPES_TRAIN_EXE, kEval = ROPES_EVAL_EXE,
                   kRun = ROPES_RUN_EXE;
@@ -193,8 +228,9 @@ const char* const kWeights[] = {"ae1.safetensors",
 // ROPES_PRINT_GOLDEN=1 and copy what it prints). No independent implementation trains the
 // whole pipeline; its parts have witnesses: the sparsity loss gradient against finite
 // differences (ropes_crl's SparsityObjective test), every ropes_nn operation against
-// PyTorch and finite differences. Exact on the instruction set that made them (AVX-512,
-// Release, ropes_nn kernels built -march=native), within 5 % elsewhere.
+// PyTorch and finite differences. Pinned per instruction-set level of the kernels (v4 and
+// v3, with the weight files' hashes), exact in the build that made them, within
+// tolerances elsewhere.
 TEST_F(Pipeline, TinyRunIsDeterministicPinnedAndLearnsTheSparsityPattern) {
   const fs::path a = dir_ / "run_a", b = dir_ / "run_b";
   const Output ta = train(a.string());
@@ -244,60 +280,106 @@ TEST_F(Pipeline, TinyRunIsDeterministicPinnedAndLearnsTheSparsityPattern) {
   const fs::path c = dir_ / "run_other_level";
   fs::copy(a, c, fs::copy_options::recursive);
   nlohmann::json moved = run_json;
-  moved["provenance"]["isa_level"] = "x86-64-v3";
+  const std::string other_level =
+      run_json["provenance"]["isa_level"] == "x86-64-v3" ? "x86-64-v4" : "x86-64-v3";
+  moved["provenance"]["isa_level"] = other_level;
   std::ofstream(c / "run.json") << moved.dump(2);
   const Output ec =
       run(kEval + " --run " + c.string() + " --data " + (dir_ / "data1").string() +
           " --probe-steps 100 --repeats 3 --calibration-samples 20 --test-samples 20");
   ASSERT_EQ(ec.rc, 0) << ec.text;
   EXPECT_NE(
-      ec.text.find("note: trained under another build than this one (isa_level: x86-64-v3 vs " +
-                   run_json["provenance"]["isa_level"].get<std::string>() + ")"),
+      ec.text.find("note: trained under another build than this one (isa_level: " + other_level +
+                   " vs " + run_json["provenance"]["isa_level"].get<std::string>() + ")"),
       std::string::npos)
       << ec.text;
   EXPECT_NE(bytes_of(c / "results.md").find("- **trained under another build** (isa_level: "),
             std::string::npos);
 
-  // golden values
-  double ae1_loss = 0, ae2_loss = 0;
-  std::map<std::string, std::vector<nlohmann::json>> rows;  // model -> logged sparsity rows
-  for (const nlohmann::json& m : metrics_of(a)) {
-    if (m["stage"] == "ae1" && m["step"] == 30)
-      ae1_loss = m["loss"];
-    if (m["stage"] == "ae2" && m["model"] == "panda_joint4" && m["step"] == 200)
-      ae2_loss = m["loss"];
-    if (m["stage"] == "ae2" && m["model"] != "lambda0")
-      rows[m["model"]].push_back(m["sparsity_rows"][m["model"].get<std::string>()]);
+  // golden values, per instruction-set level: the default level's run above, and in a
+  // dispatch build on a CPU with AVX-512 also the v3 kernels' run (ROPES_ISA=v3), so that
+  // this machine checks both levels' pins
+  const ropes::nn::BuildInfo& build = ropes::nn::build_info();
+  std::vector<std::pair<const LevelGolden*, fs::path>> levels;
+  for (const LevelGolden* g : {&kGoldenV4, &kGoldenV3})
+    if (build.isa_level.substr(0, build.isa_level.find(' ')) == g->level)
+      levels.push_back({g, a});
+  if (build.isa_build == "dispatch" && build.isa_level == "x86-64-v4" &&
+      std::getenv("ROPES_ISA") == nullptr) {
+    const fs::path a3 = dir_ / "run_a_v3";
+    const Output t3 =
+        run("ROPES_ISA=v3 " + kTrain + " --config 1c-tiny --data " + (dir_ / "data0").string() +
+            " --out " + a3.string() + " --threads 2 --progress lines");
+    ASSERT_EQ(t3.rc, 0) << t3.text;
+    const Output e3 = run("ROPES_ISA=v3 " + kEval + " --run " + a3.string() + " --data " +
+                          (dir_ / "data1").string() +
+                          " --probe-steps 100 --repeats 3 --calibration-samples 20 "
+                          "--test-samples 20");
+    ASSERT_EQ(e3.rc, 0) << e3.text;
+    EXPECT_EQ(json_of(a3 / "run.json")["provenance"]["isa_level"], "x86-64-v3");
+    levels.push_back({&kGoldenV3, a3});
   }
-  const double mcc2 = results["methods"]["ropes"]["mcc"][0];
-  if (std::getenv("ROPES_PRINT_GOLDEN") != nullptr)
-    std::printf("golden: ae1 %.9g ae2 %.9g mcc2 %.9g\n", ae1_loss, ae2_loss, mcc2);
-  const bool same_isa = __builtin_cpu_supports("avx512f");
-  const double rel = same_isa ? 1e-6 : 5e-2;
-  EXPECT_NEAR(ae1_loss, kGoldenAe1Loss, rel * kGoldenAe1Loss) << "ae1 loss at step 30";
-  EXPECT_NEAR(ae2_loss, kGoldenAe2Loss, rel * kGoldenAe2Loss)
-      << "ae2 panda_joint4 loss at step 200";
-  EXPECT_NEAR(mcc2, kGoldenMcc2, same_isa ? 1e-6 : 5e-2) << "MCC of joint 2";
-
-  // the tiny run's metrics, every method and joint (means of the 3 repeats): a regression
-  // pin of the evaluation as a whole. Exact (1e-6) on the instruction set that made them;
-  // elsewhere within 0.1 (MCC) and 25 % (MSE), as the training bits differ there
+  // exact where the pins were made: g++ 12.2 and Eigen 3.4.0, the dispatch build's x86-64-v3
+  // baseline (a native build also tunes for its CPU, which may fuse other multiply-adds);
+  // elsewhere
+  // (another compiler, Eigen, a sanitizer build, a CPU of another level) tolerances that
+  // still catch a broken learner: the unpinned level's run is checked against the v4 pins
+  const bool pinned_build = build.isa_build == "dispatch" && build.compiler == "GNU 12.2.0" &&
+                            build.eigen == "3.4.0" && build.flags.rfind("Release:", 0) == 0 &&
+                            build.isa_baseline == "x86-64-v3";
+  // no pins of this level (a CPU below v3, another architecture): the v4 pins, tolerantly
+  const bool unpinned_level = levels.empty();
+  if (unpinned_level)
+    levels.push_back({&kGoldenV4, a});
   const std::vector<std::string> methods = {"ropes", "lambda0_autoencoder", "ldr_logit",
                                             "pca_of_code"};
-  if (std::getenv("ROPES_PRINT_GOLDEN") != nullptr) {
-    for (const std::string& m : methods)
-      for (const char* what : {"mcc", "mse"})
-        for (std::size_t k = 0; k < 3; ++k)
-          std::printf("golden metric: %s %s %zu %.9g\n", m.c_str(), what, k,
-                      results["methods"][m][what][k].get<double>());
-  }
-  for (const GoldenMetric& g : kGoldenMetrics) {
-    const double v = results["methods"][g.method][g.what][g.joint].get<double>();
-    const bool mcc = std::string(g.what) == "mcc";
-    EXPECT_NEAR(v, g.value, same_isa ? 1e-6 : (mcc ? 0.1 : 0.25 * g.value))
-        << g.method << " " << g.what << " of joint column " << g.joint;
+  for (const auto& [golden, run_dir] : levels) {
+    const bool exact = pinned_build && !unpinned_level;
+    double ae1_loss = 0, ae2_loss = 0;
+    for (const nlohmann::json& m : metrics_of(run_dir)) {
+      if (m["stage"] == "ae1" && m["step"] == 30)
+        ae1_loss = m["loss"];
+      if (m["stage"] == "ae2" && m["model"] == "panda_joint4" && m["step"] == 200)
+        ae2_loss = m["loss"];
+    }
+    std::string hashes;
+    for (const char* f : kWeights)
+      hashes += ropes::nn::sha256_file(run_dir / f);
+    const std::string weights = ropes::nn::sha256_hex(hashes.data(), hashes.size());
+    const nlohmann::json r = json_of(run_dir / "results.json");
+    if (std::getenv("ROPES_PRINT_GOLDEN") != nullptr) {
+      std::printf("golden %s: ae1 %.9g ae2 %.9g weights %s\n", golden->level, ae1_loss, ae2_loss,
+                  weights.c_str());
+      for (const std::string& m : methods)
+        for (const char* what : {"mcc", "mse"})
+          for (std::size_t k = 0; k < 3; ++k)
+            std::printf("golden metric %s: {\"%s\", \"%s\", %zu, %.9g},\n", golden->level,
+                        m.c_str(), what, k, r["methods"][m][what][k].get<double>());
+    }
+    const std::string where = std::string(" (") + golden->level + (exact ? ", exact)" : ")");
+    if (exact) {
+      EXPECT_EQ(weights, golden->weights) << "the weight files' hashes" << where;
+    }
+    // the losses: 1e-8 relative where exact (the pins' nine digits), 5 % elsewhere (a learner
+    // that does not learn ends far from them: AE1's loss starts near 0.3)
+    const double rel = exact ? 1e-8 : 5e-2;
+    EXPECT_NEAR(ae1_loss, golden->ae1_loss, rel * golden->ae1_loss) << "ae1 loss, step 30" << where;
+    EXPECT_NEAR(ae2_loss, golden->ae2_loss, rel * golden->ae2_loss)
+        << "ae2 panda_joint4 loss, step 200" << where;
+    // every method and joint (means of the 3 repeats): exact (1e-8 relative), else within 0.1
+    // (MCC) and 25 % (MSE), as the training bits differ there
+    for (const GoldenMetric& g : golden->metrics) {
+      const double v = r["methods"][g.method][g.what][g.joint].get<double>();
+      const bool mcc = std::string(g.what) == "mcc";
+      EXPECT_NEAR(v, g.value, exact ? 1e-8 * std::fabs(g.value) : (mcc ? 0.1 : 0.25 * g.value))
+          << g.method << " " << g.what << " of joint column " << g.joint << where;
+    }
   }
 
+  std::map<std::string, std::vector<nlohmann::json>> rows;  // model -> logged sparsity rows
+  for (const nlohmann::json& m : metrics_of(a))
+    if (m["stage"] == "ae2" && m["model"] != "lambda0")
+      rows[m["model"]].push_back(m["sparsity_rows"][m["model"].get<std::string>()]);
   // || E|J^T v_i| - e_i || shrinks between the first and the last logged step
   const std::vector<std::string> joints = {"panda_joint2", "panda_joint4", "panda_joint6"};
   for (std::size_t i = 0; i < joints.size(); ++i) {
@@ -1072,14 +1154,16 @@ TEST_F(Pipeline, RopesRunResumesInsideItsStagesAndEndsWithTheTable) {
 }
 
 // The `small` 1C preset end to end (label `slow`, about 8 minutes on 2 cores): `ropes-run
-// 1c-small` with seed 0, the id suite by the paper's protocol, every joint's mean MCC at or
-// above a floor. The floors are each joint's lowest value measured on the datasets of
-// sim_dataset_version 3 with the preset's linear AE1 code and difference loss, rounded down:
-// three training seeds before the kernels' sums were fixed by the batch size (joint 2 0.988 /
-// 0.986 / 0.986, joint 4 0.945 / 0.958 / 0.972, joint 6 0.880 / 0.879 / 0.886) and seed 0
-// after (0.979 / 0.957 / 0.875; the same seed on other bits moves by up to 0.01, as another
-// seed would). Another CPU's seed 0 should meet them as a further seed would. The issue's
-// targets (the paper's 0.949 / 0.975 / 0.957) are met on joint 2 only. Prints the values.
+// 1c-small` with seed 0, the id suite by the paper's protocol. Where the values were measured
+// (the default dispatch build's x86-64-v4 kernels, g++ 12.2, Eigen 3.4.0, Release) each
+// joint's mean MCC is the measured one, exactly: 0.981028612 / 0.959723413 / 0.861254003.
+// Elsewhere (the v3 kernels, a native build, another compiler) the bits differ as another
+// seed's would, and each joint must reach the lowest value measured, rounded down: 0.978 /
+// 0.944 / 0.861 (seed 0 of the dispatch build above; seeds 0, 1, 2 of 1b10de5's native
+// build: joint 2 0.979 / 0.988 / 0.985, joint 4 0.957 / 0.970 / 0.969, joint 6 0.875 / 0.876
+// / 0.873; and of 86a5392's: 0.988 / 0.986 / 0.986, 0.945 / 0.958 / 0.972, 0.880 / 0.879 /
+// 0.886). The targets (the paper's 0.949 / 0.975 / 0.957) are met on joint 2 only.
+// Prints the values.
 // Under AddressSanitizer the preset trains far slower (AE1 at 5.6 images/s: over 3 hours
 // for its 2,000 steps alone), and clang's -O1 float arithmetic is not the Release build's
 // that the floors were measured on. So a sanitizer build runs the same job at the same
@@ -1112,16 +1196,27 @@ TEST_F(Pipeline, SmallPresetOneCameraReachesTheMeasuredMcc) {
   const nlohmann::json results = json_of(out / "report" / "results.json");
   const nlohmann::json& ropes = results["suites"][0]["results"]["methods"]["ropes"];
   const std::vector<std::string> joints = {"panda_joint2", "panda_joint4", "panda_joint6"};
-  const double floors[] = {0.978, 0.944, 0.875};
+  const double floors[] = {0.978, 0.944, 0.861};
+  // (unused in a sanitizer build, which checks only that the table is complete)
+  [[maybe_unused]] const double measured_v4[] = {0.981028612, 0.959723413, 0.861254003};
+  [[maybe_unused]] const ropes::nn::BuildInfo& build = ropes::nn::build_info();
+  [[maybe_unused]] const bool pinned =
+      build.isa_build == "dispatch" && build.isa_level == "x86-64-v4" &&
+      build.isa_baseline == "x86-64-v3" && build.compiler == "GNU 12.2.0" &&
+      build.eigen == "3.4.0" && build.flags.rfind("Release:", 0) == 0;
   ASSERT_EQ(ropes["mcc"].size(), joints.size()) << ropes.dump();
   for (std::size_t k = 0; k < joints.size(); ++k) {
     const double mcc = ropes["mcc"][k].get<double>();
-    std::printf("small 1C seed 0: %s MCC %.3f ± %.3f (floor %.3f), MSE %.3f\n", joints[k].c_str(),
+    std::printf("small 1C seed 0: %s MCC %.9f ± %.3f (floor %.3f), MSE %.3f\n", joints[k].c_str(),
                 mcc, ropes["mcc_std"][k].get<double>(), floors[k], ropes["mse"][k].get<double>());
 #if defined(ROPES_PIPELINE_SANITIZED)
     EXPECT_TRUE(std::isfinite(mcc) && std::fabs(mcc) <= 1.0) << joints[k] << ": " << mcc;
 #else
-    EXPECT_GE(mcc, floors[k]) << joints[k];
+    if (pinned) {
+      EXPECT_NEAR(mcc, measured_v4[k], 1e-9) << joints[k] << " (exact: " << build.isa_level << ")";
+    } else {
+      EXPECT_GE(mcc, floors[k]) << joints[k] << " (" << build.isa_level << ", not pinned)";
+    }
 #endif
   }
 }

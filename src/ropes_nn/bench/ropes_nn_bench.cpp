@@ -10,11 +10,15 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "ropes_nn/batch_loader.hpp"
 #include "ropes_nn/benchmark.hpp"
+#include "ropes_nn/build_info.hpp"
+#include "ropes_nn/layers.hpp"
+#include "ropes_nn/ops.hpp"
 #include "ropes_nn/parallel.hpp"
 #include "ropes_nn/philox.hpp"
 
@@ -72,6 +76,35 @@ LoaderFigure loader_rate(bool prefetch, bool quick) {
               " rows, page cache warm, " + (prefetch ? "read ahead on a thread" : "no read-ahead")};
 }
 
+// A training step of an AE1-like encoder (the `small` preset's shapes: a 4x4 stride-4 stem,
+// residual blocks with group norm at 32, 16 and 8 pixels, stride-2 convolutions between):
+// forward and backward of a batch of 32 images of 128x128, in images/s. Every kernel a
+// trainer runs is in it: the GEMM (at the dispatched level), im2col, group norm, elementwise.
+double encoder_step_rate(bool quick) {
+  Sequential net;
+  net.add(std::make_shared<Conv2d>(1, 16, 4, 4));
+  net.add(std::make_shared<ResBlockGN>(16, 4));
+  net.add(std::make_shared<Conv2d>(16, 32, 3, 2));
+  net.add(std::make_shared<ResBlockGN>(32, 8));
+  net.add(std::make_shared<Conv2d>(32, 64, 3, 2));
+  net.add(std::make_shared<ResBlockGN>(64, 8));
+  net.initialize(3);
+  PhiloxStream rng(6, 0);
+  std::vector<float> pixels(32 * 128 * 128);
+  for (float& v : pixels)
+    v = rng.uniform_float();
+  const Tensor x(Shape{32, 1, 128, 128}, pixels);
+  const std::vector<Tensor> params = net.parameters();
+  const double s = bench::median_seconds(
+      [&] {
+        const Tensor y = net(x);
+        const Tensor loss = mean(mul(y, y));
+        (void)grad({loss}, params);
+      },
+      quick ? 3 : 9);
+  return 32 / s;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -88,8 +121,12 @@ int main(int argc, char** argv) {
     }
   }
   set_num_threads(threads);
-  std::printf("ropes_nn_bench: %d thread(s); GEMM peak (Eigen sgemm 1024^3) %.1f GFLOP/s\n",
-              num_threads(), bench::gemm_peak_gflops());
+  const BuildInfo& build = build_info();
+  std::printf("ropes_nn_bench: %d thread(s); kernels %s (build %s, baseline %s)\n", num_threads(),
+              build.isa_level.c_str(), build.isa_build.c_str(), build.isa_baseline.c_str());
+  std::printf("GEMM peak (Eigen's kernel, sgemm 1024^3) %.1f GFLOP/s\n", bench::gemm_peak_gflops());
+  bench::report("encoder_train_step", encoder_step_rate(quick), {}, "images/s", true,
+                "(AE1-like encoder, batch 32 of 128x128, forward and backward)");
   // the loader feeding AE1: shuffled batches of 32 u8 images into float tensors
   for (const bool prefetch : {true, false}) {
     const LoaderFigure f = loader_rate(prefetch, quick);

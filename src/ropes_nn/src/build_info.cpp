@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "gemm.hpp"
 #include "ropes_nn_revision.h"
 
 namespace ropes::nn {
@@ -38,7 +39,9 @@ std::string compiled_level() {
 const BuildInfo& build_info() {
   static const BuildInfo info = [] {
     BuildInfo b;
-    b.isa_level = compiled_level();
+    b.isa_level = gemm_kernels().level;
+    b.isa_baseline = compiled_level();
+    b.isa_build = ROPES_NN_ISA_BUILD;
     b.compiler = ROPES_NN_COMPILER;
     b.flags = ROPES_NN_FLAGS;
     b.eigen = std::to_string(EIGEN_WORLD_VERSION) + "." + std::to_string(EIGEN_MAJOR_VERSION) +
@@ -72,7 +75,8 @@ std::vector<std::string> cpu_levels() {
 }
 
 bool cpu_runs_build_level() {
-  const std::string level = build_info().isa_level.substr(0, build_info().isa_level.find(' '));
+  const std::string level =
+      build_info().isa_baseline.substr(0, build_info().isa_baseline.find(' '));
   for (const std::string& l : cpu_levels())
     if (l == level)
       return true;
@@ -81,9 +85,10 @@ bool cpu_runs_build_level() {
 
 nlohmann::json provenance(int threads) {
   const BuildInfo& b = build_info();
-  return {{"isa_level", b.isa_level}, {"cpu_levels", cpu_levels()}, {"compiler", b.compiler},
-          {"flags", b.flags},         {"eigen", b.eigen},           {"revision", b.revision},
-          {"threads", threads}};
+  return {
+      {"isa_level", b.isa_level},   {"isa_baseline", b.isa_baseline}, {"isa_build", b.isa_build},
+      {"cpu_levels", cpu_levels()}, {"compiler", b.compiler},         {"flags", b.flags},
+      {"eigen", b.eigen},           {"revision", b.revision},         {"threads", threads}};
 }
 
 std::vector<std::string> provenance_differences(const nlohmann::json& a, const nlohmann::json& b) {
@@ -92,7 +97,7 @@ std::vector<std::string> provenance_differences(const nlohmann::json& a, const n
     return p.is_object() && p.contains(key) && p[key].is_string() ? p[key].get<std::string>()
                                                                   : std::string("missing");
   };
-  for (const char* key : {"isa_level", "compiler", "flags", "eigen"}) {
+  for (const char* key : {"isa_level", "isa_baseline", "compiler", "flags", "eigen"}) {
     const std::string va = field(a, key), vb = field(b, key);
     if (va != vb || va == "missing")
       out.push_back(std::string(key) + ": " + va + " vs " + vb);

@@ -3,6 +3,8 @@
 // bits on every CPU of an instruction-set level and at every thread count.
 #include <cstdint>
 
+#include "gemm_kernel.hpp"
+
 namespace ropes::nn {
 
 // c [m, n] = op(a) [m, k] * op(b) [k, n], or c += when `accumulate`. All three are row-major
@@ -19,6 +21,10 @@ namespace ropes::nn {
 //   multiples of 16 (whole register panels), with the blocking of the whole product, so
 //   each output element is computed by the same instructions at every thread count.
 // Eigen's own threading is never used (set_num_threads keeps Eigen at one thread).
+// The instruction set: the Eigen half (gemm_kernel.cpp) is compiled for x86-64-v4 and v3
+// (and the baseline's flags when the baseline is below v3); gemm_kernels() picks the highest
+// the CPU has, or the one ROPES_ISA names. Each level gives the same bits on every CPU that
+// runs it; two levels differ (another vector width orders the sums otherwise).
 // Small and vector-shaped products go to Eigen's coefficient-wise and GEMV expressions,
 // which depend on neither. The packing blocks come from a per-thread workspace that only
 // grows, so a warm inference does not allocate.
@@ -32,16 +38,19 @@ inline void gemm(const float* a, const float* b, float* c, std::int64_t m, std::
 
 // The blocking reference: the cache sizes Eigen 3.4 queries on the AMD Zen 5 machine the
 // workspace's tables were measured on (L1d 48 KiB, L2 1 MiB; L3 only needs to be non-zero).
-struct CacheSizes {
-  std::int64_t l1, l2, l3;
-};
 constexpr CacheSizes kReferenceCaches{49152, 1048576, 532676608};
 
 // Eigen 3.4's one-thread blocking heuristic (evaluateProductBlockingSizesHeuristic, for
-// float, KcFactor 1) evaluated at `caches` instead of the CPU's: on entry k, m, n are the
-// product's depth, rows and columns of Eigen's column-major view; on return kc, mc, nc.
+// float, KcFactor 1) evaluated at `caches` instead of the CPU's, for the selected kernels: on entry
+// k, m, n are the product's depth, rows and columns of Eigen's column-major view; on return kc, mc,
+// nc.
 void reference_blocking(std::int64_t& k, std::int64_t& m, std::int64_t& n,
                         const CacheSizes& caches = kReferenceCaches);
+
+// The kernels this process runs: the highest level the CPU has among those compiled, or the
+// one ROPES_ISA names (v4, v3, or baseline; an unknown name or a level the CPU lacks throws
+// with the names this build has). Chosen once, at the first call.
+const GemmKernels& gemm_kernels();
 
 // For tests: what Eigen's own heuristic (computeProductBlockingSizes, one thread) gives with
 // its cache sizes set to `caches`, compiled as the kernels are. It sets Eigen's process-wide

@@ -29,6 +29,8 @@ int default_threads() {
 
 std::atomic<int>& thread_setting() {
   static std::atomic<int> threads{[] {
+    // the kernels' level, chosen now so that a bad ROPES_ISA is refused before any work
+    gemm_kernels();
     pin_eigen_blocking();
     // Eigen never threads a product of ropes_nn's (its parallel GEMM blocks and splits the
     // work by the thread count); the kernels split work themselves (src/gemm.hpp)
@@ -50,6 +52,7 @@ void pin_eigen_blocking() {
                                     "\"; expected three byte counts \"l1,l2,l3\", l1 and l2 > 0");
       }
       Eigen::setCpuCacheSizes(l1, l2, l3);
+      gemm_kernels().set_eigen_caches({l1, l2, l3});
     }
     Eigen::setCpuCacheSizes(kReferenceCaches.l1, kReferenceCaches.l2, kReferenceCaches.l3);
     return true;

@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 
 #include <cstdio>
+#include <cstdlib>
 #include <string>
 
 namespace ropes::nn {
@@ -32,6 +33,14 @@ TEST(BuildInfo, RecordsWhatBuiltTheLibrary) {
   EXPECT_TRUE(b.compiler.rfind("GNU ", 0) == 0 || b.compiler.rfind("Clang ", 0) == 0) << b.compiler;
   EXPECT_NE(b.flags.find("-O"), std::string::npos) << b.flags;
   EXPECT_EQ(b.isa_level.rfind("x86-64", 0), 0u) << b.isa_level;
+  EXPECT_EQ(b.isa_baseline.rfind("x86-64", 0), 0u) << b.isa_baseline;
+  EXPECT_TRUE(b.isa_build == "dispatch" || b.isa_build == "native") << b.isa_build;
+  // the kernels run at the highest level this CPU has among the compiled ones (v4 and v3 in
+  // a dispatch build), unless ROPES_ISA names one
+  if (b.isa_build == "dispatch" && std::getenv("ROPES_ISA") == nullptr &&
+      cpu_levels().front() != "x86-64" && cpu_levels().front() != "x86-64-v2") {
+    EXPECT_EQ(b.isa_level, cpu_levels().front());
+  }
   // the witness: git itself, in the source tree the library was built from
   const std::string git =
       output_of("git -C " ROPES_NN_SOURCE_DIR " describe --always --dirty --abbrev=12 2>/dev/null");
@@ -60,7 +69,7 @@ TEST(BuildInfo, ProvenanceDifferencesNameWhatDecidesTheBits) {
             (std::vector<std::string>{"isa_level: " + build_info().isa_level + " vs x86-64-v3",
                                       "eigen: " + build_info().eigen + " vs 3.3.9"}));
   // a result from before provenance was recorded
-  EXPECT_EQ(provenance_differences(here, nlohmann::json()).size(), 4u);
+  EXPECT_EQ(provenance_differences(here, nlohmann::json()).size(), 5u);
 }
 
 }  // namespace

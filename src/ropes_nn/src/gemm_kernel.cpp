@@ -1,0 +1,196 @@
+// The instruction-set-specific half of the kernels' GEMM (see gemm_kernel.hpp). Compiled once
+// per level with ROPES_KERNEL_NS naming the level's namespace and Eigen renamed.
+#include "gemm_kernel.hpp"
+
+#include <Eigen/Core>
+
+#ifndef ROPES_KERNEL_NS
+#error "compile gemm_kernel.cpp with -DROPES_KERNEL_NS=kernel_<level>"
+#endif
+
+// the level this compilation targets, from the compiler's own macros
+#if defined(__x86_64__)
+#if defined(__AVX512F__) && defined(__AVX512BW__) && defined(__AVX512CD__) && \
+    defined(__AVX512DQ__) && defined(__AVX512VL__)
+#define ROPES_KERNEL_ISA "x86-64-v4"
+#elif defined(__AVX2__) && defined(__FMA__) && defined(__BMI2__) && defined(__F16C__)
+#define ROPES_KERNEL_ISA "x86-64-v3"
+#elif defined(__SSE4_2__) && defined(__POPCNT__) && defined(__SSSE3__)
+#define ROPES_KERNEL_ISA "x86-64-v2"
+#else
+#define ROPES_KERNEL_ISA "x86-64"
+#endif
+#else
+#define ROPES_KERNEL_ISA "other"
+#endif
+#if defined(ROPES_KERNEL_NATIVE)
+#define ROPES_KERNEL_LEVEL ROPES_KERNEL_ISA " (-march=native)"
+#else
+#define ROPES_KERNEL_LEVEL ROPES_KERNEL_ISA
+#endif
+
+namespace ropes::nn::ROPES_KERNEL_NS {
+
+namespace {
+
+using Index = Eigen::Index;
+using RowMajor = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+using EigenBlocking =
+    Eigen::internal::gemm_blocking_space<Eigen::RowMajor, float, float, Eigen::Dynamic,
+                                         Eigen::Dynamic, Eigen::Dynamic>;
+// what `c.noalias() += op(a) * op(b)` runs for a row-major destination; a transposed
+// row-major operand is a column-major one
+template <int LhsOrder, int RhsOrder>
+using Kernel = Eigen::internal::general_matrix_matrix_product<Index, float, LhsOrder, false, float,
+                                                              RhsOrder, false, Eigen::RowMajor, 1>;
+
+// the product's own blocking and packing blocks in place of Eigen's
+class GivenBlocking : public EigenBlocking {
+ public:
+  explicit GivenBlocking(const GemmProduct& p) : EigenBlocking(p.m, p.n, p.k, 1, true) {
+    this->m_kc = p.kc;
+    this->m_mc = p.mc;
+    this->m_nc = p.nc;
+    this->m_blockA = p.block_a;
+    this->m_blockB = p.block_b;
+  }
+  ~GivenBlocking() {
+    // the blocks belong to the caller: keep Eigen's destructor from freeing them
+    this->m_blockA = nullptr;
+    this->m_blockB = nullptr;
+  }
+  GivenBlocking(const GivenBlocking&) = delete;
+  GivenBlocking& operator=(const GivenBlocking&) = delete;
+};
+
+template <int LhsOrder, int RhsOrder>
+void run_rows(const GemmProduct& p, Index begin, Index end) {
+  GivenBlocking blocking(p);
+  if (!p.accumulate) {
+    for (float* c = p.c + begin * p.n; c != p.c + end * p.n; ++c)
+      *c = 0.0f;
+  }
+  // row `begin` of op(a): a row of a [m, k], or a column of a [k, m]
+  const float* lhs = LhsOrder == Eigen::RowMajor ? p.a + begin * p.k : p.a + begin;
+  const Index lhs_stride = LhsOrder == Eigen::RowMajor ? p.k : p.m;
+  const Index rhs_stride = RhsOrder == Eigen::RowMajor ? p.n : p.k;
+  Kernel<LhsOrder, RhsOrder>::run(end - begin, p.n, p.k, lhs, lhs_stride, p.b, rhs_stride,
+                                  p.c + begin * p.n, 1, p.n, 1.0f, blocking);
+}
+
+void rows(const GemmProduct& p, std::int64_t begin, std::int64_t end) {
+  constexpr int kRow = Eigen::RowMajor, kCol = Eigen::ColMajor;
+  if (!p.a_transposed && !p.b_transposed)
+    run_rows<kRow, kRow>(p, begin, end);
+  else if (!p.a_transposed)
+    run_rows<kRow, kCol>(p, begin, end);
+  else if (!p.b_transposed)
+    run_rows<kCol, kRow>(p, begin, end);
+  else
+    run_rows<kCol, kCol>(p, begin, end);
+}
+
+template <typename Lhs, typename Rhs>
+void small_product(const Lhs& a, const Rhs& b, float* c, Index m, Index n, bool accumulate) {
+  Eigen::Map<RowMajor> cm(c, m, n);
+  if (accumulate)
+    cm.noalias() += a * b;
+  else
+    cm.noalias() = a * b;
+}
+
+void small(const GemmProduct& p) {
+  using Map = Eigen::Map<const RowMajor>;
+  const Map a(p.a, p.a_transposed ? p.k : p.m, p.a_transposed ? p.m : p.k);
+  const Map b(p.b, p.b_transposed ? p.n : p.k, p.b_transposed ? p.k : p.n);
+  if (!p.a_transposed && !p.b_transposed)
+    small_product(a, b, p.c, p.m, p.n, p.accumulate);
+  else if (!p.a_transposed)
+    small_product(a, b.transpose(), p.c, p.m, p.n, p.accumulate);
+  else if (!p.b_transposed)
+    small_product(a.transpose(), b, p.c, p.m, p.n, p.accumulate);
+  else
+    small_product(a.transpose(), b.transpose(), p.c, p.m, p.n, p.accumulate);
+}
+
+std::int64_t smaller(std::int64_t a, std::int64_t b) {
+  return a < b ? a : b;
+}
+std::int64_t larger(std::int64_t a, std::int64_t b) {
+  return a < b ? b : a;
+}
+
+void blocking(std::int64_t& k, std::int64_t& m, std::int64_t& n, const CacheSizes& caches) {
+  // the same arithmetic as Eigen 3.4's evaluateProductBlockingSizesHeuristic for one thread
+  // (Eigen/src/Core/products/GeneralBlockPanelKernel.h); the unit test checks it against
+  // Eigen's own at the same cache sizes
+  using Traits = Eigen::internal::gebp_traits<float, float>;
+  constexpr std::int64_t kMr = Traits::mr, kNr = Traits::nr, kScalar = sizeof(float);
+  std::int64_t l1 = caches.l1;
+  const std::int64_t l2 = caches.l2, l3 = caches.l3;
+#ifdef EIGEN_VECTORIZE_AVX512
+  l1 *= 4;
+#endif
+  if (larger(k, larger(m, n)) < 48)
+    return;
+  constexpr std::int64_t k_peeling = 8, k_div = kMr * kScalar + kNr * kScalar,
+                         k_sub = kMr * kNr * kScalar;
+  const std::int64_t max_kc = larger(((l1 - k_sub) / k_div) & ~(k_peeling - 1), 1);
+  const std::int64_t old_k = k;
+  if (k > max_kc) {
+    k = (k % max_kc) == 0
+            ? max_kc
+            : max_kc - k_peeling * ((max_kc - 1 - (k % max_kc)) / (k_peeling * (k / max_kc + 1)));
+  }
+  constexpr std::int64_t actual_l2 = 1572864;  // Eigen's fixed 1.5 MB
+  std::int64_t max_nc;
+  const std::int64_t lhs_bytes = m * k * kScalar;
+  const std::int64_t remaining_l1 = l1 - k_sub - lhs_bytes;
+  if (remaining_l1 >= kNr * kScalar * k)
+    max_nc = remaining_l1 / (k * kScalar);
+  else
+    max_nc = (3 * actual_l2) / (2 * 2 * max_kc * kScalar);
+  const std::int64_t nc = smaller(actual_l2 / (2 * k * kScalar), max_nc) & ~(kNr - 1);
+  if (n > nc) {
+    n = (n % nc) == 0 ? nc : nc - kNr * ((nc - (n % nc)) / (kNr * (n / nc + 1)));
+  } else if (old_k == k) {
+    const std::int64_t problem_size = k * n * kScalar;
+    std::int64_t actual_lm = actual_l2, max_mc = m;
+    if (problem_size <= 1024) {
+      actual_lm = l1;
+    } else if (l3 != 0 && problem_size <= 32768) {
+      actual_lm = l2;
+      max_mc = smaller(576, max_mc);
+    }
+    std::int64_t mc = smaller(actual_lm / (3 * k * kScalar), max_mc);
+    if (mc > kMr)
+      mc -= mc % kMr;
+    else if (mc == 0)
+      return;
+    m = (m % mc) == 0 ? mc : mc - kMr * ((mc - (m % mc)) / (kMr * (m / mc + 1)));
+  }
+}
+
+void set_eigen_caches(const CacheSizes& caches) {
+  Eigen::setCpuCacheSizes(caches.l1, caches.l2, caches.l3);
+}
+
+void eigen_blocking(const CacheSizes& caches, std::int64_t& k, std::int64_t& m, std::int64_t& n) {
+  std::ptrdiff_t l1 = 0, l2 = 0, l3 = 0;
+  Eigen::internal::manage_caching_sizes(Eigen::GetAction, &l1, &l2, &l3);
+  Eigen::setCpuCacheSizes(caches.l1, caches.l2, caches.l3);
+  Index kk = k, mm = m, nn = n;
+  Eigen::internal::computeProductBlockingSizes<float, float, 1>(kk, mm, nn, Index{1});
+  Eigen::setCpuCacheSizes(l1, l2, l3);
+  k = kk;
+  m = mm;
+  n = nn;
+}
+
+}  // namespace
+
+extern const GemmKernels kGemm;
+const GemmKernels kGemm{ROPES_KERNEL_LEVEL, &rows,           &small,
+                        &blocking,          &eigen_blocking, &set_eigen_caches};
+
+}  // namespace ropes::nn::ROPES_KERNEL_NS

@@ -1,0 +1,63 @@
+#pragma once
+// Private: the instruction-set-specific half of src/gemm.hpp, compiled once per level
+// (gemm_kernel.cpp with -march=x86-64-v3, -march=x86-64-v4, or the baseline's flags).
+//
+// Only plain types cross this boundary. Each compilation renames Eigen's namespace
+// (-DEigen=ropes_eigen_<level>) and puts its own code in ropes::nn::<level>, so that no
+// inline function or template instance compiled for one level can be picked by the linker for
+// another (a v4 copy of an Eigen routine run on an AVX2 CPU would die of SIGILL); the test
+// `ropes_nn_kernel_symbols` checks that the objects define nothing outside those namespaces.
+#include <cstdint>
+
+namespace ropes::nn {
+
+struct CacheSizes {
+  std::int64_t l1, l2, l3;
+};
+
+// one product c (+)= op(a) op(b) (see gemm.hpp), with its blocking and packing blocks
+struct GemmProduct {
+  const float* a;
+  bool a_transposed;
+  const float* b;
+  bool b_transposed;
+  float* c;
+  std::int64_t m, k, n;
+  bool accumulate;
+  std::int64_t kc, mc, nc;  // the blocking of the whole product (Eigen's column-major view)
+  float* block_a;           // kc * mc floats
+  float* block_b;           // kc * nc floats
+};
+
+struct GemmKernels {
+  // the compilation's level: "x86-64-v4", "x86-64-v3", the baseline's ("x86-64", ...), with
+  // " (-march=native)" in a native build
+  const char* level;
+  // rows [begin, end) of the blocked product
+  void (*rows)(const GemmProduct& p, std::int64_t begin, std::int64_t end);
+  // a tiny or vector-shaped product, whole (Eigen's coefficient-wise or GEMV expression)
+  void (*small)(const GemmProduct& p);
+  // Eigen 3.4's one-thread blocking heuristic at `caches` (gemm.hpp's reference_blocking)
+  void (*blocking)(std::int64_t& k, std::int64_t& m, std::int64_t& n, const CacheSizes& caches);
+  // for tests: Eigen's own computeProductBlockingSizes with its cache sizes set to `caches`
+  void (*eigen_blocking)(const CacheSizes& caches, std::int64_t& k, std::int64_t& m,
+                         std::int64_t& n);
+  // tells this level's Eigen the cache sizes, as a CPU would report them (tests, emulation)
+  void (*set_eigen_caches)(const CacheSizes& caches);
+};
+
+// the levels compiled into this build (ROPES_NN_KERNEL_LEVELS in CMake)
+namespace kernel_v4 {
+extern const GemmKernels kGemm;
+}
+namespace kernel_v3 {
+extern const GemmKernels kGemm;
+}
+namespace kernel_baseline {
+extern const GemmKernels kGemm;
+}
+namespace kernel_native {
+extern const GemmKernels kGemm;
+}
+
+}  // namespace ropes::nn
