@@ -158,6 +158,8 @@ int run(int argc, char** argv) {
   const fs::path dir = out.empty() ? fs::path("runs") / config.name : fs::path(out);
   const fs::path train_data = dir / "train-data", run_dir = dir / "run",
                  report_dir = dir / "report", state_file = dir / "ropes-run.json";
+  // the threads, and the kernels' level (a bad ROPES_ISA is refused before anything is written)
+  ropes::nn::set_num_threads(threads);
   fs::create_directories(dir);
   // OUT is the user's; what ropes-run makes inside it stays inside it
   for (const fs::path& inside : {train_data, run_dir, report_dir, dir / "test-data", state_file}) {
@@ -194,7 +196,6 @@ int run(int argc, char** argv) {
     state["stages"] = nlohmann::json::object();
   auto save = [&] { write_text(state_file, state.dump(2) + "\n"); };
   save();
-  ropes::nn::set_num_threads(threads);
   const auto t0 = std::chrono::steady_clock::now();
   auto say = [&](int stage, const std::string& line) {
     const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -12,7 +12,7 @@ namespace ropes::nn {
 
 namespace {
 
-// the level of this translation unit's compilation, which is the kernels' (same flags)
+// the level of this translation unit's compilation: the baseline's (ropes_nn's flags)
 std::string compiled_level() {
 #if defined(__x86_64__)
 #if defined(__AVX512F__) && defined(__AVX512BW__) && defined(__AVX512CD__) && \
@@ -56,13 +56,21 @@ std::vector<std::string> cpu_levels() {
   std::vector<std::string> levels;
 #if defined(__x86_64__)
   __builtin_cpu_init();
+#if defined(__GNUC__) && !defined(__clang__) && __GNUC__ >= 12
+  // g++ knows the levels' whole feature sets (v3 also has F16C, LZCNT, MOVBE, ...)
+  const bool v2 = __builtin_cpu_supports("x86-64-v2");
+  const bool v3 = __builtin_cpu_supports("x86-64-v3");
+  const bool v4 = __builtin_cpu_supports("x86-64-v4");
+#else
+  // clang (the sanitizer build): the features it can ask for
   const bool v2 = __builtin_cpu_supports("sse4.2") && __builtin_cpu_supports("popcnt") &&
                   __builtin_cpu_supports("ssse3");
   const bool v3 = v2 && __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
-                  __builtin_cpu_supports("bmi2");
+                  __builtin_cpu_supports("bmi2") && __builtin_cpu_supports("f16c");
   const bool v4 = v3 && __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
                   __builtin_cpu_supports("avx512cd") && __builtin_cpu_supports("avx512dq") &&
                   __builtin_cpu_supports("avx512vl");
+#endif
   if (v4)
     levels.push_back("x86-64-v4");
   if (v3)

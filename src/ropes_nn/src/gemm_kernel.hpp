@@ -46,7 +46,8 @@ struct GemmKernels {
   void (*set_eigen_caches)(const CacheSizes& caches);
 };
 
-// the levels compiled into this build (ROPES_NN_KERNEL_LEVELS in CMake)
+// the levels a build may compile (CMake's _ropes_kernel_levels; gemm.cpp sees the compiled ones
+// as ROPES_NN_KERNEL_V4, ROPES_NN_KERNEL_V3 and ROPES_NN_KERNEL_BASELINE)
 namespace kernel_v4 {
 extern const GemmKernels kGemm;
 }

@@ -4,8 +4,6 @@
 
 #include <gtest/gtest.h>
 
-#include <Eigen/Core>
-
 #include <cmath>
 #include <string>
 #include <vector>
@@ -37,7 +35,7 @@ const Shape3 kShapes[] = {{16, 16, 1024}, {64, 288, 256},  {47, 576, 81},  {128,
 
 // The witness is Eigen's own computeProductBlockingSizes, called with its cache sizes set to
 // the same values: reference_blocking must be the same arithmetic, at the reference and at
-// another CPU's sizes.
+// another CPU's sizes (for the kernels this CPU runs; ROPES_ISA=v3 checks the v3 copy).
 TEST(Gemm, ReferenceBlockingIsEigensHeuristicAtFixedCacheSizes) {
   for (const CacheSizes& caches : {kReferenceCaches, kOtherCpu}) {
     for (std::int64_t k : {1, 8, 47, 48, 200, 576, 1152, 3000, 20000}) {
@@ -61,8 +59,10 @@ TEST(Gemm, ReferenceBlockingIsEigensHeuristicAtFixedCacheSizes) {
 }
 
 // op(a) op(b) for the four transpose combinations, against a double-precision product
-// (the witness), with and without accumulation into c
+// (the witness), with and without accumulation into c, on 1 and 3 threads (3 splits the rows,
+// so every row offset of a transposed operand is used)
 TEST(Gemm, TransposedAndAccumulatedProductsAreTheProduct) {
+  const int saved = num_threads();
   for (const Shape3& s : kShapes) {
     const std::vector<float> a = normals(static_cast<std::size_t>(s.m * s.k), 1);
     const std::vector<float> b = normals(static_cast<std::size_t>(s.k * s.n), 2);
@@ -83,49 +83,62 @@ TEST(Gemm, TransposedAndAccumulatedProductsAreTheProduct) {
               static_cast<double>(a[static_cast<std::size_t>(i * s.k + p)]) *
               b[static_cast<std::size_t>(p * s.n + j)];
     const double tolerance = 1e-5 * std::sqrt(static_cast<double>(s.k)) * 4;
-    for (int combination = 0; combination < 4; ++combination) {
-      const bool ta = combination & 1, tb = combination & 2;
-      for (bool accumulate : {false, true}) {
-        std::vector<float> c = c0;
-        gemm(ta ? at.data() : a.data(), ta, tb ? bt.data() : b.data(), tb, c.data(), s.m, s.k, s.n,
-             accumulate);
-        for (std::size_t i = 0; i < c.size(); ++i) {
-          const double expected = want[i] + (accumulate ? c0[i] : 0.0);
-          ASSERT_NEAR(c[i], expected, tolerance * (1 + std::abs(expected)))
-              << s.m << "x" << s.k << "x" << s.n << " transposes " << ta << tb << " accumulate "
-              << accumulate << " at " << i;
+    for (int threads : {1, 3}) {
+      set_num_threads(threads);
+      for (int combination = 0; combination < 4; ++combination) {
+        const bool ta = combination & 1, tb = combination & 2;
+        for (bool accumulate : {false, true}) {
+          std::vector<float> c = c0;
+          gemm(ta ? at.data() : a.data(), ta, tb ? bt.data() : b.data(), tb, c.data(), s.m, s.k,
+               s.n, accumulate);
+          for (std::size_t i = 0; i < c.size(); ++i) {
+            const double expected = want[i] + (accumulate ? c0[i] : 0.0);
+            ASSERT_NEAR(c[i], expected, tolerance * (1 + std::abs(expected)))
+                << s.m << "x" << s.k << "x" << s.n << " transposes " << ta << tb << " accumulate "
+                << accumulate << " threads " << threads << " at " << i;
+          }
         }
       }
     }
   }
+  set_num_threads(saved);
 }
 
-std::vector<float> product_at(const Shape3& s, int threads) {
+// every transpose combination, with and without accumulation, at `threads`
+std::vector<float> products_at(const Shape3& s, int threads) {
   set_num_threads(threads);
   const std::vector<float> a = normals(static_cast<std::size_t>(s.m * s.k), 4);
   const std::vector<float> b = normals(static_cast<std::size_t>(s.k * s.n), 5);
-  std::vector<float> c(static_cast<std::size_t>(s.m * s.n));
-  gemm(a.data(), false, b.data(), true, c.data(), s.m, s.k, s.n, false);
-  return c;
+  const std::vector<float> c0 = normals(static_cast<std::size_t>(s.m * s.n), 6);
+  std::vector<float> all;
+  for (int combination = 0; combination < 4; ++combination) {
+    for (bool accumulate : {false, true}) {
+      std::vector<float> c = c0;
+      gemm(a.data(), combination & 1, b.data(), combination & 2, c.data(), s.m, s.k, s.n,
+           accumulate);
+      all.insert(all.end(), c.begin(), c.end());
+    }
+  }
+  return all;
 }
 
-// What another CPU would change: the cache sizes Eigen queries (set here as that CPU would
-// report them) and the thread count. Neither may change a bit.
+// What another CPU would change: the cache sizes Eigen queries (set here, in the selected
+// kernels' own Eigen, as that CPU would report them) and the thread count. Neither may change
+// a bit.
 TEST(Gemm, SameBitsWhateverTheCpuReportsAndAtEveryThreadCount) {
   const int saved = num_threads();
-  std::ptrdiff_t l1 = 0, l2 = 0, l3 = 0;
-  Eigen::internal::manage_caching_sizes(Eigen::GetAction, &l1, &l2, &l3);
   for (const Shape3& s : kShapes) {
-    Eigen::setCpuCacheSizes(kReferenceCaches.l1, kReferenceCaches.l2, kReferenceCaches.l3);
-    const std::vector<float> reference = product_at(s, 1);
-    Eigen::setCpuCacheSizes(kOtherCpu.l1, kOtherCpu.l2, kOtherCpu.l3);
+    gemm_kernels().set_eigen_caches(kReferenceCaches);
+    const std::vector<float> reference = products_at(s, 1);
+    gemm_kernels().set_eigen_caches(kOtherCpu);
     const std::string what =
         std::to_string(s.m) + "x" + std::to_string(s.k) + "x" + std::to_string(s.n);
-    EXPECT_EQ(product_at(s, 1), reference) << what << " at another CPU's cache sizes";
-    EXPECT_EQ(product_at(s, 2), reference) << what << " at 2 threads";
-    EXPECT_EQ(product_at(s, 3), reference) << what << " at 3 threads";
+    EXPECT_EQ(products_at(s, 1), reference) << what << " at another CPU's cache sizes";
+    EXPECT_EQ(products_at(s, 2), reference) << what << " at 2 threads";
+    EXPECT_EQ(products_at(s, 3), reference) << what << " at 3 threads";
   }
-  Eigen::setCpuCacheSizes(l1, l2, l3);
+  // the kernels' blocking ignores Eigen's setting: leave it at the reference
+  gemm_kernels().set_eigen_caches(kReferenceCaches);
   set_num_threads(saved);
 }
 
