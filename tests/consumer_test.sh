@@ -39,6 +39,13 @@ if grep -qw avx2 /proc/cpuinfo && grep -q "build dispatch" "$work/default.out"; 
   fi
   grep -q "ROPES_ISA=v9: not a level of this build; expected one of v4, v3" "$work/v9.out" \
     || { cat "$work/v9.out"; echo "FAIL: no message naming the levels" >&2; exit 1; }
+  echo "== consumer: a CPU below the baseline (emulated) is refused before anything runs"
+  rc=0
+  ROPES_EMULATE_CPU_LEVEL=x86-64-v2 "$work/ok/ropes_consumer" > "$work/v2.out" 2> "$work/v2.err" \
+    || rc=$?
+  cat "$work/v2.err"
+  [ "$rc" = 1 ] && [ ! -s "$work/v2.out" ] && grep -q "built for x86-64-v3" "$work/v2.err" \
+    || { echo "FAIL: exit $rc; expected 1, no output and the baseline's message" >&2; exit 1; }
 else
   echo "(skipped: no AVX2 here, or not a dispatch build)"
 fi
