@@ -174,9 +174,14 @@ nlohmann::json open_run(const ExperimentConfig& config, const TrainingData& data
             ", this one: " + (key == "config" ? config.name : value.dump()) +
             "); choose another --out or remove it");
     // resumed by another build: its weights may differ in the last bits from what the first
-    // build would have written; recorded beside the first
-    if (!nn::provenance_differences(run.value("provenance", nlohmann::json()), provenance)
-             .empty()) {
+    // build would have written; recorded beside the first, once per build (not per resume, and
+    // not for another thread count or revision, which change no bit)
+    bool known =
+        nn::provenance_differences(run.value("provenance", nlohmann::json()), provenance).empty();
+    if (run.contains("resumed_under") && run["resumed_under"].is_array())
+      for (const nlohmann::json& earlier : run["resumed_under"])
+        known = known || nn::provenance_differences(earlier, provenance).empty();
+    if (!known) {
       run["resumed_under"].push_back(provenance);
       write_json_file(run_json, run);
     }
