@@ -1168,7 +1168,8 @@ TEST_F(Pipeline, RopesRunResumesInsideItsStagesAndEndsWithTheTable) {
       << other.text;
 }
 
-// The `small` 1C preset end to end (label `slow`, about 8 minutes on 2 cores): `ropes-run
+// The `small` 1C preset end to end (label `preset`, 8 to 10 minutes on 2 cores; out of
+// ci/test's default run, `ROPES_WITH_PRESET=1 bash ci/test` runs it): `ropes-run
 // 1c-small` with seed 0, the id suite by the paper's protocol. Where the values were measured
 // (the default dispatch build's x86-64-v4 kernels, g++ 12.2, Eigen 3.4.0, Release) each
 // joint's mean MCC is the measured one, exactly: 0.981028612 / 0.959723413 / 0.861254003.
