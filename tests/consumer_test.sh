@@ -15,7 +15,7 @@ set +u
 . "$install_dir/setup.bash"
 set -u
 
-echo "== consumer: find_package(ropes_nn 0.1) and find_package(ropes_eval 0.1)"
+echo "== consumer: find_package(ropes_core 0.1), (ropes_nn 0.1) and (ropes_eval 0.1)"
 cmake -S "$here/consumer" -B "$work/ok" -DCMAKE_BUILD_TYPE=Release > "$work/ok.log" 2>&1 \
   || { cat "$work/ok.log"; exit 1; }
 cmake --build "$work/ok" > "$work/ok-build.log" 2>&1 || { cat "$work/ok-build.log"; exit 1; }

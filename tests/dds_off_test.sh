@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Builds the workspace with -DROPES_WITH_DDS=OFF in a scratch build and install space: every
-# package that has the option (all but ropes_nn) must build, its tools must run the main job
+# package that has the option (all but ropes_core and ropes_nn) must build, its tools must run the main job
 # end to end (ropes-run on the tiny preset) and refuse the DDS flags with the reason, and
 # ropes_msgs must install a config file that tells a consumer it was built without Fast DDS.
 # The tests are not built here (BUILD_TESTING=OFF): DDS adds only executables and the tools'
@@ -8,29 +8,32 @@
 # the libraries and the test executables compile from the same sources with and without it,
 # and their tests run in the main build. Rebuilding and rerunning them here took 3 of this
 # script's 5 minutes of CI (docs/2026-12-04-ci-time.md).
-# ropes_nn has no DDS option, so it is not built again: the main install's is used. The build
+# ropes_core and ropes_nn have no DDS option, so they are not built again: the main install's
+# are used. The build
 # is -O1, which compiles in less time than Release's -O3, and leaves out the benchmarks (they
 # have no DDS part; the main build compiles them).
-# Usage: dds_off_test.sh WORKSPACE (its install/ropes_nn built)
+# Usage: dds_off_test.sh WORKSPACE (its install/ropes_core and install/ropes_nn built)
 set -euo pipefail
 workspace=$(cd "$1" && pwd)
 scratch=$(mktemp -d)
 trap 'rm -rf "$scratch"' EXIT
 cd "$workspace"
 colcon() { /usr/bin/colcon "$@"; }  # Debian's colcon, whatever python3 comes first on PATH
-if [ ! -f "$workspace/install/ropes_nn/lib/cmake/ropes_nn/ropes_nnConfig.cmake" ]; then
-  echo "FAIL: $workspace/install/ropes_nn is not installed; run colcon build first" >&2
-  exit 1
-fi
-if grep -q "ROPES_WITH_DDS" "$workspace/src/ropes_nn/CMakeLists.txt"; then
-  echo "FAIL: ropes_nn has a DDS option now; build it here again" >&2
-  exit 1
-fi
 # colcon finds a skipped package in the install base it builds into: a copy of the main one's
 mkdir -p "$scratch/install"
-cp -a "$workspace/install/ropes_nn" "$scratch/install/ropes_nn"
+for pkg in ropes_core ropes_nn; do
+  if [ ! -f "$workspace/install/$pkg/lib/cmake/$pkg/${pkg}Config.cmake" ]; then
+    echo "FAIL: $workspace/install/$pkg is not installed; run colcon build first" >&2
+    exit 1
+  fi
+  if grep -q "ROPES_WITH_DDS" "$workspace/src/$pkg/CMakeLists.txt"; then
+    echo "FAIL: $pkg has a DDS option now; build it here again" >&2
+    exit 1
+  fi
+  cp -a "$workspace/install/$pkg" "$scratch/install/$pkg"
+done
 colcon --log-base "$scratch/log" build --build-base "$scratch/build" --install-base "$scratch/install" \
-  --packages-skip ropes_nn --cmake-args -DCMAKE_BUILD_TYPE=Release \
+  --packages-skip ropes_core ropes_nn --cmake-args -DCMAKE_BUILD_TYPE=Release \
   "-DCMAKE_CXX_FLAGS_RELEASE=-O1 -DNDEBUG" -DROPES_WITH_DDS=OFF -DROPES_BUILD_BENCH=OFF \
   -DBUILD_TESTING=OFF \
   --no-warn-unused-cli

@@ -1,19 +1,27 @@
-// Uses ropes_nn, ropes_crl and ropes_eval from their install space: draws two correlated
+// Uses ropes_core, ropes_nn, ropes_crl and ropes_eval from their install space: hashes FIPS
+// 180-2's "abc" with ropes_core's SHA-256, draws two correlated
 // samples and checks their correlation and best assignment, and builds the networks of an installed
 // ROPES config, so linking and running the libraries (and finding installed configs) is exercised.
 // Encodes a batch with AE1 (the kernels' GEMM) and prints the instruction-set level the kernels
 // ran at and a checksum of the code: consumer_test.sh runs it again with ROPES_ISA=v3.
+#include <ropes_core/philox.hpp>
+#include <ropes_core/sha256.hpp>
 #include <ropes_crl/experiment_config.hpp>
 #include <ropes_crl/networks.hpp>
 #include <ropes_eval/correlation.hpp>
 #include <ropes_nn/build_info.hpp>
-#include <ropes_nn/philox.hpp>
 
 #include <cstdio>
+#include <string>
 #include <vector>
 
 int main() {
-  ropes::nn::PhiloxStream rng(/*seed=*/5, /*stream=*/0);
+  // FIPS 180-2, appendix B.1
+  const std::string abc = ropes::core::sha256_hex("abc", 3);
+  std::printf("consumer: sha256(\"abc\") %s\n", abc.c_str());
+  if (abc != "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad")
+    return 1;
+  ropes::core::PhiloxStream rng(/*seed=*/5, /*stream=*/0);
   const int n = 5000;
   Eigen::VectorXd x(n), y(n);
   for (int i = 0; i < n; ++i) {

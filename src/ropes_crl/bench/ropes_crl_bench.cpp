@@ -20,6 +20,7 @@
 #include <unistd.h>
 
 #include <nlohmann/json.hpp>
+#include <ropes_core/philox.hpp>
 #include <ropes_crl/estimator.hpp>
 #include <ropes_crl/experiment_config.hpp>
 #include <ropes_crl/networks.hpp>
@@ -29,7 +30,6 @@
 #include <ropes_nn/benchmark.hpp>
 #include <ropes_nn/ops.hpp>
 #include <ropes_nn/parallel.hpp>
-#include <ropes_nn/philox.hpp>
 #include <ropes_nn/train_step.hpp>
 
 #include <algorithm>
@@ -45,6 +45,7 @@
 #include <string>
 #include <vector>
 
+namespace core = ropes::core;
 namespace nn = ropes::nn;
 namespace crl = ropes::crl;
 using nn::Shape;
@@ -60,7 +61,7 @@ std::int64_t small_anchors(std::int64_t cameras) {
 }
 
 Tensor uniform(const Shape& shape, std::uint64_t seed) {
-  nn::PhiloxStream rng(seed, 0);
+  core::PhiloxStream rng(seed, 0);
   std::vector<float> v(static_cast<std::size_t>(shape.numel()));
   for (float& x : v)
     x = rng.uniform_float();
@@ -68,7 +69,7 @@ Tensor uniform(const Shape& shape, std::uint64_t seed) {
 }
 
 Tensor normal(const Shape& shape, std::uint64_t seed) {
-  nn::PhiloxStream rng(seed, 0);
+  core::PhiloxStream rng(seed, 0);
   std::vector<float> v(static_cast<std::size_t>(shape.numel()));
   for (float& x : v)
     x = static_cast<float>(rng.normal());
@@ -275,7 +276,7 @@ int estimator_frames(const std::string& run, int threads) {
     const crl::ExperimentConfig& c = estimator.config();
     const std::size_t pixels = static_cast<std::size_t>(c.cameras * c.image_size * c.image_size);
     std::vector<std::uint8_t> frame(pixels);
-    nn::PhiloxStream rng(7, 0);
+    core::PhiloxStream rng(7, 0);
     for (std::uint8_t& v : frame)
       v = static_cast<std::uint8_t>(rng.next_u32());
     std::vector<float> latents(c.joints.size());

@@ -1,14 +1,14 @@
 // Example from the ropes_crl README: ROPES on your own images, without the simulator. Writes
-// a small dataset in ropes_nn's container (a bar at angle q drawn into 32x32 images, under
+// a small dataset in ropes_core's container (a bar at angle q drawn into 32x32 images, under
 // the paper's two shifted-mean interventions on q), trains the `tiny` preset on it with
 // ropes-train's code, then loads the run with the Estimator and maps single frames to the
 // latent that estimates q.
 //
 //   ropes_crl_example_estimator [DIR]   (default: a temporary directory, removed at the end)
+#include <ropes_core/dataset.hpp>
+#include <ropes_core/philox.hpp>
 #include <ropes_crl/estimator.hpp>
 #include <ropes_crl/trainer.hpp>
-#include <ropes_nn/dataset.hpp>
-#include <ropes_nn/philox.hpp>
 
 #include <unistd.h>
 
@@ -34,15 +34,15 @@ void draw_bar(double q, std::uint8_t* image) {
 // 200 anchors x (observational, do(q)=1, do(q)=2): the columns ropes-generate writes
 void write_dataset(const fs::path& dir) {
   const std::int64_t anchors = 200, n = anchors * 3;
-  nn::NpyArray images{nn::DType::kU8, {n, 1, 32, 32}, std::vector<std::uint8_t>(n * 1024)};
-  nn::NpyArray angles{nn::DType::kF32, {n, 1}, std::vector<std::uint8_t>(n * 4)};
-  nn::NpyArray regime{nn::DType::kI32, {n}, std::vector<std::uint8_t>(n * 4)};
-  nn::NpyArray anchor{nn::DType::kI64, {n}, std::vector<std::uint8_t>(n * 8)};
+  core::NpyArray images{core::DType::kU8, {n, 1, 32, 32}, std::vector<std::uint8_t>(n * 1024)};
+  core::NpyArray angles{core::DType::kF32, {n, 1}, std::vector<std::uint8_t>(n * 4)};
+  core::NpyArray regime{core::DType::kI32, {n}, std::vector<std::uint8_t>(n * 4)};
+  core::NpyArray anchor{core::DType::kI64, {n}, std::vector<std::uint8_t>(n * 8)};
   const double means[3] = {0.0, -0.75, 0.75}, stds[3] = {1.0, 0.5, 0.5};
   for (std::int64_t i = 0; i < n; ++i) {
     const std::int32_t r = static_cast<std::int32_t>(i % 3);
     const std::int64_t a = i / 3;
-    nn::PhiloxStream rng(/*seed=*/3, /*stream=*/static_cast<std::uint64_t>(i));
+    core::PhiloxStream rng(/*seed=*/3, /*stream=*/static_cast<std::uint64_t>(i));
     // TN(mean, std) on [-1.5, 1.5]
     const double z = rng.truncated_normal((-1.5 - means[r]) / stds[r], (1.5 - means[r]) / stds[r]);
     const float q = static_cast<float>(means[r] + stds[r] * z);
@@ -51,11 +51,11 @@ void write_dataset(const fs::path& dir) {
     std::memcpy(&regime.data[i * 4], &r, 4);
     std::memcpy(&anchor.data[i * 8], &a, 8);
   }
-  const std::vector<nn::ColumnSpec> columns = {{"images", nn::DType::kU8, {1, 32, 32}},
-                                               {"angles", nn::DType::kF32, {1}},
-                                               {"regime", nn::DType::kI32, {}},
-                                               {"anchor", nn::DType::kI64, {}}};
-  nn::write_dataset_shard(dir, 0, columns, {images, angles, regime, anchor});
+  const std::vector<core::ColumnSpec> columns = {{"images", core::DType::kU8, {1, 32, 32}},
+                                                 {"angles", core::DType::kF32, {1}},
+                                                 {"regime", core::DType::kI32, {}},
+                                                 {"anchor", core::DType::kI64, {}}};
+  core::write_dataset_shard(dir, 0, columns, {images, angles, regime, anchor});
   // what the trainer reads: the regimes by joint, the interventions' distributions (for the
   // LDR's Bayes accuracy), the joint names
   const nlohmann::json tn1 = {{"mean", -0.75}, {"variance", 0.5}, {"lower", -1.5}, {"upper", 1.5}};
@@ -71,7 +71,7 @@ void write_dataset(const fs::path& dir) {
         {{"name", "do(bar)=1"}, {"joint", "bar"}, {"joint_index", 0}, {"intervention", 1}},
         {{"name", "do(bar)=2"}, {"joint", "bar"}, {"joint_index", 0}, {"intervention", 2}}}},
       {"distribution", {{"interventions", {{"bar", {tn1, tn2}}}}}}};
-  nn::write_dataset_manifest(dir, columns, 1, metadata.dump());
+  core::write_dataset_manifest(dir, columns, 1, metadata.dump());
 }
 
 int main(int argc, char** argv) {

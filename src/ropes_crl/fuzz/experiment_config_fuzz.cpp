@@ -8,12 +8,12 @@
 #include <stdexcept>
 #include <string>
 
+#include "ropes_core/fuzz_input.hpp"
 #include "ropes_crl/experiment_config.hpp"
-#include "ropes_nn/fuzz_input.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using namespace ropes;
-  static const nn::fuzz::ScratchDir scratch;
+  static const core::fuzz::ScratchDir scratch;
   const auto file =
       scratch.write("config.json", std::string(reinterpret_cast<const char*>(data), size));
   try {

@@ -6,7 +6,8 @@
 #include <filesystem>
 #include <string>
 
-#include <ropes_nn/npy.hpp>
+#include <ropes_core/file_format_error.hpp>
+#include <ropes_core/file_io.hpp>
 
 namespace ropes::crl {
 
@@ -20,11 +21,11 @@ void check_version(const nlohmann::json& meta, const std::string& manifest,
     return;
   const nlohmann::json& v = meta["sim_dataset_version"];
   if (!v.is_number_integer())
-    throw nn::FileFormatError(manifest + ": metadata.sim_dataset_version is not an integer (" +
-                              std::string(v.type_name()) + ")");
+    throw core::FileFormatError(manifest + ": metadata.sim_dataset_version is not an integer (" +
+                                std::string(v.type_name()) + ")");
   const auto version = v.get<std::int64_t>();
   if (version < kOldestSimDatasetVersion)
-    throw nn::FileFormatError(
+    throw core::FileFormatError(
         manifest + ": sim_dataset_version " + std::to_string(version) +
         ", made when ropes-generate read the paper's TN(mean, x) as a standard deviation; the "
         "paper's x is a variance (sim_dataset_version " +
@@ -40,21 +41,21 @@ nlohmann::json json_if_readable(const std::filesystem::path& path, std::uint64_t
   if (!std::filesystem::is_regular_file(path, ec))
     return nlohmann::json(nlohmann::json::value_t::discarded);
   try {
-    return nlohmann::json::parse(nn::read_text_file(path, limit), nullptr, false);
-  } catch (const nn::FileFormatError&) {
+    return nlohmann::json::parse(core::read_text_file(path, limit), nullptr, false);
+  } catch (const core::FileFormatError&) {
     return nlohmann::json(nlohmann::json::value_t::discarded);
   }
 }
 
 }  // namespace
 
-void require_current_sim_dataset(const nn::DatasetReader& reader) {
+void require_current_sim_dataset(const core::DatasetReader& reader) {
   check_version(reader.metadata(), (reader.dir() / "manifest.json").string(),
                 reader.dir().string());
 }
 
 void require_run_of_current_sim_dataset(const std::filesystem::path& run_dir) {
-  const nlohmann::json run = json_if_readable(run_dir / "run.json", nn::kMaxJsonFileBytes);
+  const nlohmann::json run = json_if_readable(run_dir / "run.json", core::kMaxJsonFileBytes);
   if (!run.is_object() || !run.contains("data_dir") || !run["data_dir"].is_string())
     return;
   const std::filesystem::path data_dir = run["data_dir"].get<std::string>();
@@ -65,10 +66,10 @@ void require_run_of_current_sim_dataset(const std::filesystem::path& run_dir) {
     return;
   try {
     check_version(manifest["metadata"], (data_dir / "manifest.json").string(), data_dir.string());
-  } catch (const nn::FileFormatError& e) {
-    throw nn::FileFormatError((run_dir / "run.json").string() +
-                              ": the run was trained on an outdated dataset: " + e.what() +
-                              ", and train the run again on it");
+  } catch (const core::FileFormatError& e) {
+    throw core::FileFormatError((run_dir / "run.json").string() +
+                                ": the run was trained on an outdated dataset: " + e.what() +
+                                ", and train the run again on it");
   }
 }
 

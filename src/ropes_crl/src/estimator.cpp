@@ -1,7 +1,7 @@
 #include "ropes_crl/estimator.hpp"
 
+#include <ropes_core/file_format_error.hpp>
 #include <ropes_nn/checkpoint.hpp>
-#include <ropes_nn/npy.hpp>
 #include <ropes_nn/ops.hpp>
 
 #include <algorithm>
@@ -58,7 +58,7 @@ namespace {
 template <class Net>
 void load_weights(Net& net, const fs::path& path) {
   if (!fs::exists(path))
-    throw nn::FileFormatError(path.string() + ": missing; the run is incomplete");
+    throw core::FileFormatError(path.string() + ": missing; the run is incomplete");
   nn::load_module(net, path);
 }
 }  // namespace
@@ -71,16 +71,16 @@ Estimator Estimator::load(const fs::path& run_dir) {
     return run.is_object() && run.contains(key) ? run[key] : nlohmann::json();
   };
   if (field("format") != detail::kRunFormat)
-    throw nn::FileFormatError((run_dir / "run.json").string() + ": not a ropes run");
+    throw core::FileFormatError((run_dir / "run.json").string() + ": not a ropes run");
   if (field("complete") != true)
-    throw nn::FileFormatError((run_dir / "run.json").string() +
-                              ": the run has not finished training; run ropes-train again "
-                              "with the same arguments to resume it");
+    throw core::FileFormatError((run_dir / "run.json").string() +
+                                ": the run has not finished training; run ropes-train again "
+                                "with the same arguments to resume it");
   auto s = std::make_unique<State>();
   try {
     s->config = ExperimentConfig::from_json(field("config"), (run_dir / "run.json").string());
   } catch (const std::exception& e) {
-    throw nn::FileFormatError(e.what());
+    throw core::FileFormatError(e.what());
   }
   const ExperimentConfig& c = s->config;
   s->ae1 = std::make_unique<Ae1>(c.ae1);

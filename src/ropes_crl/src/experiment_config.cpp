@@ -5,7 +5,10 @@
 #include <stdexcept>
 
 #include "json_fields.hpp"
-#include "ropes_nn/npy.hpp"
+#include "ropes_core/file_format_error.hpp"
+#include "ropes_core/file_io.hpp"
+#include "ropes_core/package_share.hpp"
+#include "ropes_core/plain_name.hpp"
 
 namespace ropes::crl {
 
@@ -65,7 +68,7 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
     c.raw = j;
     c.name = get_string(j, "config", "name");
     // ropes-run's default output is runs/<name>: a name is never a path
-    if (!nn::is_plain_name(c.name)) {
+    if (!core::is_plain_name(c.name)) {
       throw std::invalid_argument(
           "config.name: expected a plain name (letters, digits, '_', "
           "'-', '.', not starting with '.'; at most 128 characters), "
@@ -278,7 +281,7 @@ void ExperimentConfig::resolve_epochs(std::int64_t dataset_images) {
 }
 
 fs::path installed_config_dir() {
-  return fs::path(ROPES_CRL_CONFIG_DIR);
+  return core::find_package_share("ropes_crl", "configs", ROPES_CRL_SHARE_DIR) / "configs";
 }
 
 ExperimentConfig load_experiment_config(const std::string& name_or_path) {
@@ -299,8 +302,8 @@ ExperimentConfig load_experiment_config(const std::string& name_or_path) {
   }
   std::string text;
   try {
-    text = nn::read_text_file(path, nn::kMaxJsonFileBytes);  // a huge file: refused by size
-  } catch (const nn::FileFormatError& e) {
+    text = core::read_text_file(path, core::kMaxJsonFileBytes);  // a huge file: refused by size
+  } catch (const core::FileFormatError& e) {
     throw std::invalid_argument(e.what());
   }
   nlohmann::json j;

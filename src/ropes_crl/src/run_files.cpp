@@ -1,7 +1,8 @@
 #include "run_files.hpp"
 
+#include <ropes_core/file_format_error.hpp>
+#include <ropes_core/file_io.hpp>
 #include <ropes_nn/module.hpp>
-#include <ropes_nn/npy.hpp>
 
 #include <unistd.h>
 
@@ -14,16 +15,17 @@
 namespace ropes::crl::detail {
 
 nlohmann::json read_json_file(const fs::path& path) {
-  const std::string text = nn::read_text_file(path, nn::kMaxJsonFileBytes);
+  const std::string text = core::read_text_file(path, core::kMaxJsonFileBytes);
   const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
   if (j.is_discarded())
-    throw nn::FileFormatError(path.string() + ": not valid JSON");
+    throw core::FileFormatError(path.string() + ": not valid JSON");
   return j;
 }
 
 void write_json_file(const fs::path& path, const nlohmann::json& j) {
   const std::string text = j.dump(2) + "\n";
-  nn::write_file_atomically(path, reinterpret_cast<const std::uint8_t*>(text.data()), text.size());
+  core::write_file_atomically(path, reinterpret_cast<const std::uint8_t*>(text.data()),
+                              text.size());
 }
 
 std::vector<std::string> MetricsLog::lines() const {
@@ -31,7 +33,7 @@ std::vector<std::string> MetricsLog::lines() const {
   std::error_code ec;
   if (!fs::exists(path_, ec))
     return out;
-  std::istringstream in(nn::read_text_file(path_, nn::kMaxLogFileBytes));
+  std::istringstream in(core::read_text_file(path_, core::kMaxLogFileBytes));
   std::string line;
   while (std::getline(in, line))
     if (!line.empty())
@@ -43,22 +45,23 @@ void MetricsLog::rewrite(const std::vector<std::string>& lines) const {
   std::string text;
   for (const std::string& l : lines)
     text += l + "\n";
-  nn::write_file_atomically(path_, reinterpret_cast<const std::uint8_t*>(text.data()), text.size());
+  core::write_file_atomically(path_, reinterpret_cast<const std::uint8_t*>(text.data()),
+                              text.size());
 }
 
 void MetricsLog::append(const nlohmann::json& record) const {
   const std::lock_guard<std::mutex> lock(mutex_);
   std::FILE* f = std::fopen(path_.c_str(), "a");
   if (f == nullptr)
-    throw nn::FileFormatError(path_.string() + ": cannot be opened for appending");
+    throw core::FileFormatError(path_.string() + ": cannot be opened for appending");
   const std::string line = record.dump() + "\n";
   const bool written = std::fwrite(line.data(), 1, line.size(), f) == line.size();
   const int write_errno = errno;
   const bool closed = std::fclose(f) == 0;
   if (!written || !closed) {
     // a torn last line is dropped when the stage resumes (truncate)
-    throw nn::FileFormatError(path_.string() + ": a record could not be written: " +
-                              std::strerror(written ? errno : write_errno));
+    throw core::FileFormatError(path_.string() + ": a record could not be written: " +
+                                std::strerror(written ? errno : write_errno));
   }
   if (observer_)
     observer_(record);
@@ -180,7 +183,7 @@ std::vector<std::int64_t> StepSampler::rows(std::int64_t step) {
   for (std::int64_t k = step * batch_; k < (step + 1) * batch_; ++k) {
     const std::int64_t epoch = k / n_;
     if (epoch != cached_epoch_) {
-      perm_ = nn::shuffled_indices(n_, seed_, static_cast<std::uint64_t>(epoch));
+      perm_ = core::shuffled_indices(n_, seed_, static_cast<std::uint64_t>(epoch));
       cached_epoch_ = epoch;
     }
     out.push_back(perm_[static_cast<std::size_t>(k % n_)]);

@@ -1,7 +1,7 @@
 #pragma once
 // Private helpers of the trainer and the estimator: the run directory's file names, its
 // metadata conventions, JSON files written atomically, the metrics log, the progress line.
-#include <ropes_nn/dataset.hpp>
+#include <ropes_core/dataset.hpp>
 #include <ropes_nn/tensor.hpp>
 
 #include <nlohmann/json.hpp>

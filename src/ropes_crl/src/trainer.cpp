@@ -1,13 +1,14 @@
 #include "ropes_crl/trainer.hpp"
 
+#include <ropes_core/file_io.hpp>
+#include <ropes_core/npy.hpp>
+#include <ropes_core/philox.hpp>
 #include <ropes_nn/adam.hpp>
 #include <ropes_nn/batch_loader.hpp>
 #include <ropes_nn/build_info.hpp>
 #include <ropes_nn/checkpoint.hpp>
-#include <ropes_nn/npy.hpp>
 #include <ropes_nn/ops.hpp>
 #include <ropes_nn/parallel.hpp>
-#include <ropes_nn/philox.hpp>
 #include <ropes_nn/train_step.hpp>
 
 #include <algorithm>
@@ -49,7 +50,7 @@ Tensor occlusion_augmented(const Tensor& images, const OcclusionAugmentation& a,
                                 std::to_string(a.max_size) +
                                 " px; expected [n, 1, S, S] and 1 <= min_size <= max_size <= S");
   const std::int64_t n = shape[0], side = shape[2];
-  nn::PhiloxStream rng(seed, step);
+  core::PhiloxStream rng(seed, step);
   Tensor out = images.detach();
   float* px = out.mutable_data();
   auto uniform_int = [&rng](std::int64_t lo, std::int64_t hi) {  // on [lo, hi]
@@ -103,9 +104,9 @@ using Clock = std::chrono::steady_clock;
 nn::LoadedCheckpoint resume_from(const fs::path& checkpoint, nn::Module& net, nn::Adam& adam) {
   try {
     return nn::load_checkpoint(checkpoint, net, adam);
-  } catch (const nn::FileFormatError& e) {
-    throw nn::FileFormatError(std::string(e.what()) + "; remove " + checkpoint.string() +
-                              " to train this model again from its first step");
+  } catch (const core::FileFormatError& e) {
+    throw core::FileFormatError(std::string(e.what()) + "; remove " + checkpoint.string() +
+                                " to train this model again from its first step");
   }
 }
 
@@ -287,7 +288,7 @@ void train_ae1(const ExperimentConfig& config, const TrainingData& data, const f
           mask[k * static_cast<std::size_t>(config.cameras) + static_cast<std::size_t>(c)] =
               partners.back() == row ? 0.0f : 1.0f;
       }
-      const nn::NpyArray raw = data.reader.read_rows_at("images", partners);
+      const core::NpyArray raw = data.reader.read_rows_at("images", partners);
       nn::Buffer pixels(raw.data.size());
       for (std::size_t i = 0; i < pixels.size(); ++i)
         pixels[i] = static_cast<float>(raw.data[i]) / 255.0f;
@@ -355,14 +356,14 @@ void encode_codes(const ExperimentConfig& config, const TrainingData& data,
   const std::int64_t side = config.image_size, code = config.ae1.code_size();
   const std::int64_t c = config.code_channels();
   const std::int64_t per = c * code * code;
-  nn::NpyArray out{nn::DType::kF32,
-                   {data.rows, c, code, code},
-                   std::vector<std::uint8_t>(static_cast<std::size_t>(data.rows * per) * 4)};
+  core::NpyArray out{core::DType::kF32,
+                     {data.rows, c, code, code},
+                     std::vector<std::uint8_t>(static_cast<std::size_t>(data.rows * per) * 4)};
   const std::int64_t chunk = 128;
   std::vector<std::uint8_t> pixels;
   for (std::int64_t first = 0; first < data.rows; first += chunk) {
     const std::int64_t n = std::min(chunk, data.rows - first);
-    const nn::NpyArray raw = data.reader.read_rows("images", first, n);
+    const core::NpyArray raw = data.reader.read_rows("images", first, n);
     nn::Buffer x(static_cast<std::size_t>(n * config.cameras * side * side));
     for (std::size_t i = 0; i < x.size(); ++i)
       x[i] = static_cast<float>(raw.data[i]) / 255.0f;
@@ -370,7 +371,7 @@ void encode_codes(const ExperimentConfig& config, const TrainingData& data,
     const Tensor y = net.encode(images);  // [n * cams, K, 8, 8] = [n, cams * K, 8, 8]
     std::memcpy(out.data.data() + first * per * 4, y.data(), static_cast<std::size_t>(n * per) * 4);
   }
-  nn::write_npy(codes_file(run_dir), out);
+  core::write_npy(codes_file(run_dir), out);
 }
 
 // --- stage 2: the LDRs ----------------------------------------------------------------------
@@ -424,7 +425,7 @@ LdrOutcome train_ldr(const ExperimentConfig& config, const TrainingData& data,
   std::int64_t since_best = 0, epoch = 0;
   Progress progress("ldr " + joint.name, t.max_epochs, 0, bar, 1);
   for (; epoch < t.max_epochs && since_best < t.patience; ++epoch) {
-    const std::vector<std::int64_t> order = nn::shuffled_indices(
+    const std::vector<std::int64_t> order = core::shuffled_indices(
         static_cast<std::int64_t>(train_rows.size()),
         derive_seed(options.seed, "ldr.data." + joint.name), static_cast<std::uint64_t>(epoch));
     double train_loss = 0;
@@ -721,7 +722,7 @@ void train(const ExperimentConfig& config_in, const fs::path& data_dir, const fs
   config.resolve_epochs(data.rows * config.cameras);
   nlohmann::json run = open_run(config_in, data, run_dir, options);
   const fs::path run_json = run_dir / "run.json";
-  nn::remove_stale_temporaries(run_dir);
+  core::remove_stale_temporaries(run_dir);
   const MetricsLog metrics(run_dir / "metrics.jsonl", options.on_metrics);
   // a kill between a network's final weights and the removal of its checkpoint leaves the
   // checkpoint of a finished network behind (found by ropes_eval's fault-injection test): it

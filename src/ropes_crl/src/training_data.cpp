@@ -1,8 +1,8 @@
 #include "training_data.hpp"
 
+#include <ropes_core/dataset.hpp>
+#include <ropes_core/npy.hpp>
 #include <ropes_nn/checkpoint.hpp>
-#include <ropes_nn/dataset.hpp>
-#include <ropes_nn/npy.hpp>
 #include <ropes_nn/ops.hpp>
 
 #include <cstring>
@@ -21,16 +21,16 @@ namespace fs = std::filesystem;
 
 namespace {
 
-void expect_column(const nn::DatasetReader& reader, const fs::path& manifest,
-                   const std::string& name, nn::DType dtype) {
+void expect_column(const core::DatasetReader& reader, const fs::path& manifest,
+                   const std::string& name, core::DType dtype) {
   bool found = false;
-  for (const nn::ColumnSpec& c : reader.columns())
+  for (const core::ColumnSpec& c : reader.columns())
     if (c.name == name) {
       found = true;
       if (c.dtype != dtype)
         throw std::invalid_argument(manifest.string() + ": column '" + name + "' is " +
-                                    nn::dtype_name(c.dtype) + ", expected " +
-                                    nn::dtype_name(dtype));
+                                    core::dtype_name(c.dtype) + ", expected " +
+                                    core::dtype_name(dtype));
     }
   if (!found)
     throw std::invalid_argument(manifest.string() + ": no column '" + name +
@@ -38,8 +38,8 @@ void expect_column(const nn::DatasetReader& reader, const fs::path& manifest,
 }
 
 template <class T>
-std::vector<T> read_scalar_column(const nn::DatasetReader& reader, const std::string& name) {
-  const nn::NpyArray a = reader.read_rows(name, 0, reader.rows());
+std::vector<T> read_scalar_column(const core::DatasetReader& reader, const std::string& name) {
+  const core::NpyArray a = reader.read_rows(name, 0, reader.rows());
   std::vector<T> out(static_cast<std::size_t>(reader.rows()));
   std::memcpy(out.data(), a.data.data(), out.size() * sizeof(T));
   return out;
@@ -49,15 +49,15 @@ std::vector<T> read_scalar_column(const nn::DatasetReader& reader, const std::st
 
 TrainingData TrainingData::open(const ExperimentConfig& config, const fs::path& dir,
                                 std::uint64_t seed) {
-  TrainingData d{dir, nn::DatasetReader::open(dir), {}, 0, {}, {}, {}, {}, {}, {}, {}};
+  TrainingData d{dir, core::DatasetReader::open(dir), {}, 0, {}, {}, {}, {}, {}, {}, {}};
   const fs::path manifest = dir / "manifest.json";
   d.dataset_id = read_json_file(manifest).value("dataset", "");
   d.rows = d.reader.rows();
   require_current_sim_dataset(d.reader);  // never train on the old reading of TN(mean, x)
   d.reader.verify();  // a shard damaged after generation is refused, never trained on
-  expect_column(d.reader, manifest, "images", nn::DType::kU8);
-  expect_column(d.reader, manifest, "regime", nn::DType::kI32);
-  expect_column(d.reader, manifest, "anchor", nn::DType::kI64);
+  expect_column(d.reader, manifest, "images", core::DType::kU8);
+  expect_column(d.reader, manifest, "regime", core::DType::kI32);
+  expect_column(d.reader, manifest, "anchor", core::DType::kI64);
   const std::vector<std::int64_t> image = d.reader.column("images").row_shape;
   const std::vector<std::int64_t> want{config.cameras, config.image_size, config.image_size};
   if (image != want) {
@@ -130,7 +130,7 @@ TrainingData TrainingData::open(const ExperimentConfig& config, const fs::path& 
   // held-out anchors for the LDRs' early stopping: a seeded fraction of the distinct anchors
   std::set<std::int64_t> distinct(d.anchor.begin(), d.anchor.end());
   const std::vector<std::int64_t> all(distinct.begin(), distinct.end());
-  const std::vector<std::int64_t> order = nn::shuffled_indices(
+  const std::vector<std::int64_t> order = core::shuffled_indices(
       static_cast<std::int64_t>(all.size()), derive_seed(seed, "ldr.held_out"), 0);
   const std::size_t held = static_cast<std::size_t>(
       config.ldr_training.held_out_fraction * static_cast<double>(all.size()) + 0.5);
@@ -142,12 +142,12 @@ TrainingData TrainingData::open(const ExperimentConfig& config, const fs::path& 
 }
 
 void TrainingData::load_codes(const fs::path& path) {
-  const nn::NpyArray a = nn::read_npy(path);
+  const core::NpyArray a = core::read_npy(path);
   const std::vector<std::int64_t> want{rows, code_shape[0], code_shape[1], code_shape[2]};
-  if (a.dtype != nn::DType::kF32 || a.shape != want)
-    throw nn::FileFormatError(path.string() +
-                              ": codes of another shape or dtype than this run's "
-                              "(expected f32 [rows, C, side, side]); remove it to encode again");
+  if (a.dtype != core::DType::kF32 || a.shape != want)
+    throw core::FileFormatError(path.string() +
+                                ": codes of another shape or dtype than this run's "
+                                "(expected f32 [rows, C, side, side]); remove it to encode again");
   codes.resize(static_cast<std::size_t>(a.element_count()));
   std::memcpy(codes.data(), a.data.data(), codes.size() * 4);
 }

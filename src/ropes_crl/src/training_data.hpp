@@ -4,7 +4,7 @@
 // the score differences of the frozen LDRs.
 #include "ropes_crl/experiment_config.hpp"
 
-#include <ropes_nn/dataset.hpp>
+#include <ropes_core/dataset.hpp>
 #include <ropes_nn/tensor.hpp>
 
 #include <cstdint>
@@ -24,7 +24,7 @@ struct JointRegimes {
 
 struct TrainingData {
   std::filesystem::path dir;
-  nn::DatasetReader reader;
+  core::DatasetReader reader;
   std::string dataset_id;
   std::int64_t rows = 0;
   std::vector<std::int32_t> regime;

@@ -2,7 +2,7 @@
 
 #include <gtest/gtest.h>
 
-#include <ropes_nn/npy.hpp>
+#include <ropes_core/npy.hpp>
 
 #include <unistd.h>
 #include <filesystem>
@@ -13,24 +13,24 @@ namespace fs = std::filesystem;
 namespace {
 
 // a one-column dataset whose metadata is `metadata`
-ropes::nn::DatasetReader dataset_with(const std::string& name, const std::string& metadata) {
+ropes::core::DatasetReader dataset_with(const std::string& name, const std::string& metadata) {
   const fs::path dir =
       fs::temp_directory_path() / ("ropes_crl_version_" + name + std::to_string(::getpid()));
   fs::remove_all(dir);
-  const std::vector<ropes::nn::ColumnSpec> columns = {{"regime", ropes::nn::DType::kI32, {}}};
-  ropes::nn::NpyArray regime;
-  regime.dtype = ropes::nn::DType::kI32;
+  const std::vector<ropes::core::ColumnSpec> columns = {{"regime", ropes::core::DType::kI32, {}}};
+  ropes::core::NpyArray regime;
+  regime.dtype = ropes::core::DType::kI32;
   regime.shape = {2};
   regime.data.assign(8, 0);
-  ropes::nn::write_dataset_shard(dir, 0, columns, {regime});
-  ropes::nn::write_dataset_manifest(dir, columns, 1, metadata);
-  return ropes::nn::DatasetReader::open(dir);
+  ropes::core::write_dataset_shard(dir, 0, columns, {regime});
+  ropes::core::write_dataset_manifest(dir, columns, 1, metadata);
+  return ropes::core::DatasetReader::open(dir);
 }
 
-std::string refusal(const ropes::nn::DatasetReader& reader) {
+std::string refusal(const ropes::core::DatasetReader& reader) {
   try {
     ropes::crl::require_current_sim_dataset(reader);
-  } catch (const ropes::nn::FileFormatError& e) {
+  } catch (const ropes::core::FileFormatError& e) {
     return e.what();
   }
   return "";

@@ -7,13 +7,13 @@
 // architecture, trained for a few steps on a synthetic two-joint dataset (what is tested is
 // the inference path, not the learning). Its own executable: allocation_counter.hpp
 // interposes malloc for the whole process.
+#include <ropes_core/dataset.hpp>
+#include <ropes_core/philox.hpp>
 #include <ropes_crl/estimator.hpp>
 #include <ropes_crl/trainer.hpp>
 #include <ropes_nn/allocation_counter.hpp>
 #include <ropes_nn/checkpoint.hpp>
-#include <ropes_nn/dataset.hpp>
 #include <ropes_nn/parallel.hpp>
-#include <ropes_nn/philox.hpp>
 #include <ropes_nn/safetensors.hpp>
 
 #include <gtest/gtest.h>
@@ -56,16 +56,16 @@ const char* const kJoints[2] = {"a", "b"};
 void write_dataset(const fs::path& dir, std::int64_t cameras, bool observational = true) {
   const std::int64_t anchors = 40, regimes = 5, n = anchors * regimes;
   const std::int64_t pixels = cameras * kSize * kSize;
-  nn::NpyArray images{nn::DType::kU8,
-                      {n, cameras, kSize, kSize},
-                      std::vector<std::uint8_t>(static_cast<std::size_t>(n * pixels))};
-  nn::NpyArray angles{nn::DType::kF32, {n, 2}, std::vector<std::uint8_t>(n * 8)};
-  nn::NpyArray regime{nn::DType::kI32, {n}, std::vector<std::uint8_t>(n * 4)};
-  nn::NpyArray anchor{nn::DType::kI64, {n}, std::vector<std::uint8_t>(n * 8)};
+  core::NpyArray images{core::DType::kU8,
+                        {n, cameras, kSize, kSize},
+                        std::vector<std::uint8_t>(static_cast<std::size_t>(n * pixels))};
+  core::NpyArray angles{core::DType::kF32, {n, 2}, std::vector<std::uint8_t>(n * 8)};
+  core::NpyArray regime{core::DType::kI32, {n}, std::vector<std::uint8_t>(n * 4)};
+  core::NpyArray anchor{core::DType::kI64, {n}, std::vector<std::uint8_t>(n * 8)};
   for (std::int64_t i = 0; i < n; ++i) {
     const std::int32_t r = static_cast<std::int32_t>(i % regimes);
     const std::int64_t a = i / regimes;
-    nn::PhiloxStream rng(9, static_cast<std::uint64_t>(i));
+    core::PhiloxStream rng(9, static_cast<std::uint64_t>(i));
     double q[2];
     for (int j = 0; j < 2; ++j) {
       const bool intervened = r != 0 && (r - 1) / 2 == j;
@@ -80,11 +80,12 @@ void write_dataset(const fs::path& dir, std::int64_t cameras, bool observational
     std::memcpy(&regime.data[static_cast<std::size_t>(i * 4)], &r, 4);
     std::memcpy(&anchor.data[static_cast<std::size_t>(i * 8)], &a, 8);
   }
-  const std::vector<nn::ColumnSpec> columns = {{"images", nn::DType::kU8, {cameras, kSize, kSize}},
-                                               {"angles", nn::DType::kF32, {2}},
-                                               {"regime", nn::DType::kI32, {}},
-                                               {"anchor", nn::DType::kI64, {}}};
-  nn::write_dataset_shard(dir, 0, columns, {images, angles, regime, anchor});
+  const std::vector<core::ColumnSpec> columns = {
+      {"images", core::DType::kU8, {cameras, kSize, kSize}},
+      {"angles", core::DType::kF32, {2}},
+      {"regime", core::DType::kI32, {}},
+      {"anchor", core::DType::kI64, {}}};
+  core::write_dataset_shard(dir, 0, columns, {images, angles, regime, anchor});
   nlohmann::json cams = nlohmann::json::array(), list = nlohmann::json::array();
   for (std::int64_t c = 0; c < cameras; ++c)
     cams.push_back("cam" + std::to_string(c));
@@ -106,7 +107,7 @@ void write_dataset(const fs::path& dir, std::int64_t cameras, bool observational
                                    {"joint_names", {kJoints[0], kJoints[1]}},
                                    {"regimes", list},
                                    {"distribution", {{"interventions", interventions}}}};
-  nn::write_dataset_manifest(dir, columns, 1, metadata.dump());
+  core::write_dataset_manifest(dir, columns, 1, metadata.dump());
 }
 
 // the small preset `name` ("1c-small", or "1c-small/joint" for one AE2 of every joint),
@@ -292,8 +293,8 @@ TEST_P(StandardizedRun, EveryNetworkCarriesTheOneFittedMap) {
         entry.path().extension() != ".safetensors")
       continue;
     const nn::Safetensors file = nn::read_safetensors(entry.path());
-    const nn::NpyArray* a = file.find("input.shift");
-    const nn::NpyArray* b = file.find("input.scale");
+    const core::NpyArray* a = file.find("input.shift");
+    const core::NpyArray* b = file.find("input.scale");
     ASSERT_TRUE(a != nullptr && b != nullptr) << name;
     if (files++ == 0) {
       shift = a->data;
@@ -399,8 +400,8 @@ TEST(SideBySideAe2s, OneFailureStopsTheOthersWithACheckpointAndTheRunResumes) {
 INSTANTIATE_TEST_SUITE_P(SmallPreset, EstimatorFrame,
                          ::testing::Values("1c-small", "2c-small", "1c-small/joint",
                                            "1c-small/standardized"),
-                         [](const auto& info) {
-                           const std::string p = info.param;
+                         [](const auto& param_info) {
+                           const std::string p = param_info.param;
                            if (p == "1c-small/joint")
                              return std::string("OneCameraJointMode");
                            if (p == "1c-small/standardized")

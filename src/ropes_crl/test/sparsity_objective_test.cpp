@@ -1,7 +1,7 @@
 #include "ropes_crl/sparsity_objective.hpp"
 
+#include <ropes_core/philox.hpp>
 #include <ropes_nn/ops.hpp>
-#include <ropes_nn/philox.hpp>
 #include <ropes_nn/train_step.hpp>
 
 #include <gtest/gtest.h>
@@ -17,7 +17,7 @@ using ropes::nn::Tensor;
 namespace {
 
 Tensor normal(const Shape& s, std::uint64_t stream, float scale = 1.0f) {
-  ropes::nn::PhiloxStream rng(99, stream);
+  ropes::core::PhiloxStream rng(99, stream);
   std::vector<float> v(static_cast<std::size_t>(s.numel()));
   for (float& x : v)
     x = scale * static_cast<float>(rng.normal());

@@ -1,9 +1,11 @@
 // ropes-stream: a trained run's Estimator as a DDS node: ImageFrames in, PoseEstimates out.
+#include <ropes_core/cli.hpp>
+#include <ropes_core/dataset.hpp>
+#include <ropes_core/dtype.hpp>
+#include <ropes_core/file_io.hpp>
 #include <ropes_crl/dataset_version.hpp>
 #include <ropes_crl/estimator.hpp>
 #include <ropes_msgs/dds.hpp>
-#include <ropes_nn/dataset.hpp>
-#include <ropes_nn/npy.hpp>
 
 #include "frame_grouper.hpp"
 
@@ -11,6 +13,7 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <memory>
 #include <string>
@@ -49,32 +52,16 @@ options:
 The domain is ROPES_DDS_DOMAIN (default 0); ROPES_DDS_LOOPBACK=1 keeps to this host.
 )";
 
-struct UsageError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
+using ropes::core::UsageError;
 
 long long parse_count(const std::string& flag, const std::string& text) {
-  std::size_t end = 0;
-  long long v = -1;
-  try {
-    v = std::stoll(text, &end);
-  } catch (const std::exception&) {
-    end = 0;
-  }
-  if (end != text.size() || v < 1)
-    throw UsageError(flag + " is '" + text + "'; expected a positive integer");
-  return v;
+  return ropes::core::parse_number<long long>(flag, text, 1, std::numeric_limits<long long>::max());
 }
 
+// a rate in (0, 100000] Hz
 double parse_rate(const std::string& flag, const std::string& text) {
-  std::size_t end = 0;
-  double v = -1;
-  try {
-    v = std::stod(text, &end);
-  } catch (const std::exception&) {
-    end = 0;
-  }
-  if (end != text.size() || !(v > 0 && v <= 1e5))
+  const double v = ropes::core::parse_number<double>(flag, text, 0.0, 1e5);
+  if (v == 0)
     throw UsageError(flag + " is '" + text + "'; expected a rate in (0, 100000] Hz");
   return v;
 }
@@ -149,7 +136,7 @@ class Node {
 
 ropes::crl::Calibration read_calibration(const fs::path& file) {
   const nlohmann::json j = nlohmann::json::parse(
-      ropes::nn::read_text_file(file, ropes::nn::kMaxJsonFileBytes), nullptr, false);
+      ropes::core::read_text_file(file, ropes::core::kMaxJsonFileBytes), nullptr, false);
   if (j.is_discarded())
     throw std::runtime_error(file.string() + ": not valid JSON");
   try {
@@ -159,14 +146,14 @@ ropes::crl::Calibration read_calibration(const fs::path& file) {
   }
 }
 
-int replay(Node& node, ropes::crl::Estimator& estimator, const ropes::nn::DatasetReader& reader,
+int replay(Node& node, ropes::crl::Estimator& estimator, const ropes::core::DatasetReader& reader,
            msgs::Publisher<msgs::JointState>& joint_pub, const msgs::ShutdownSignals& signals,
            double rate, long long rows_limit) {
   const fs::path& dir = reader.dir();
   const auto& images = reader.column("images");
   const std::vector<std::int64_t> want = {estimator.cameras(), estimator.image_size(),
                                           estimator.image_size()};
-  if (images.row_shape != want || images.dtype != ropes::nn::DType::kU8)
+  if (images.row_shape != want || images.dtype != ropes::core::DType::kU8)
     throw std::runtime_error(dir.string() + ": its images column is not u8 rows of [" +
                              std::to_string(want[0]) + ", " + std::to_string(want[1]) + ", " +
                              std::to_string(want[2]) + "] (the run's cameras and image size)");
@@ -271,10 +258,11 @@ int run(int argc, char** argv) {
       static_cast<long long>(estimator.image_size()), estimator.joints().size(),
       estimator.calibrated() ? "calibrated" : "uncalibrated: latents only", participant.domain());
   // --replay: the dataset is opened (and checked) before anything is published
-  std::unique_ptr<ropes::nn::DatasetReader> reader;
+  std::unique_ptr<ropes::core::DatasetReader> reader;
   std::unique_ptr<msgs::Publisher<msgs::JointState>> joint_pub;
   if (!replay_dir.empty()) {
-    reader = std::make_unique<ropes::nn::DatasetReader>(ropes::nn::DatasetReader::open(replay_dir));
+    reader =
+        std::make_unique<ropes::core::DatasetReader>(ropes::core::DatasetReader::open(replay_dir));
     ropes::crl::require_current_sim_dataset(*reader);  // not the old reading of TN(mean, x)
     joint_pub = std::make_unique<msgs::Publisher<msgs::JointState>>(participant);
   }
@@ -306,13 +294,5 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  try {
-    return run(argc, argv);
-  } catch (const UsageError& e) {
-    std::cerr << "ropes-stream: " << e.what() << "\n";
-    return 2;
-  } catch (const std::exception& e) {
-    std::cerr << "ropes-stream: error: " << e.what() << "\n";
-    return 1;
-  }
+  return ropes::core::run_main("ropes-stream", run, argc, argv);
 }

@@ -1,4 +1,5 @@
 // ropes-train: the three stages of ROPES on a dataset, into a run directory; resumable.
+#include <ropes_core/cli.hpp>
 #include <ropes_crl/trainer.hpp>
 #ifdef ROPES_TRAIN_STATUS
 #include <ropes_msgs/dds.hpp>
@@ -45,18 +46,8 @@ options:
                      with Fast DDS
 )";
 
-struct UsageError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
-
-template <class T>
-T parse_number(const std::string& flag, const std::string& text) {
-  T value{};
-  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
-  if (ec != std::errc() || end != text.data() + text.size())
-    throw UsageError(flag + " is '" + text + "'; expected a number");
-  return value;
-}
+using ropes::core::parse_number;
+using ropes::core::UsageError;
 
 std::vector<std::string> split(const std::string& s) {
   std::vector<std::string> out;
@@ -318,13 +309,5 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  try {
-    return run(argc, argv);
-  } catch (const UsageError& e) {
-    std::fprintf(stderr, "ropes-train: %s\n", e.what());
-    return 2;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "\nropes-train: %s\n", e.what());
-    return 1;
-  }
+  return ropes::core::run_main("ropes-train", run, argc, argv);
 }

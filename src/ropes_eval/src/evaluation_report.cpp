@@ -1,6 +1,6 @@
 #include "ropes_eval/evaluation_report.hpp"
 
-#include <ropes_nn/npy.hpp>
+#include <ropes_core/file_format_error.hpp>
 
 #include <cmath>
 #include <fstream>
@@ -51,7 +51,7 @@ nlohmann::json paper_suite_numbers(const std::string& setting, const fs::path& p
   const fs::path file = paper_results.empty() ? installed_paper_results() : paper_results;
   const nlohmann::json paper = detail::read_json_if_there(file);
   if (paper.is_discarded())
-    throw nn::FileFormatError(file.string() + ": cannot be read as JSON");
+    throw core::FileFormatError(file.string() + ": cannot be read as JSON");
   nlohmann::json out = {
       {"appendix", nullptr}, {"table1_occlusion", nullptr}, {"robopepp", nullptr}};
   const nlohmann::json::json_pointer a("/appendix/mse/" + setting),

@@ -1,8 +1,8 @@
 #include "ropes_eval/html_report.hpp"
 
+#include <ropes_core/dataset.hpp>
+#include <ropes_core/npy.hpp>
 #include <ropes_crl/estimator.hpp>
-#include <ropes_nn/dataset.hpp>
-#include <ropes_nn/npy.hpp>
 
 #include <nlohmann/json.hpp>
 
@@ -314,15 +314,15 @@ ReportImages collect_report_images(const fs::path& run_dir, const fs::path& data
   out.occlusion = occlusion;
   crl::Estimator estimator = crl::Estimator::load(run_dir);
   const std::int64_t cams = estimator.cameras(), side = estimator.image_size(), plane = side * side;
-  const nn::DatasetReader reader = nn::DatasetReader::open(data_dir);
+  const core::DatasetReader reader = core::DatasetReader::open(data_dir);
   if (reader.column("images").row_shape != std::vector<std::int64_t>{cams, side, side})
     throw std::invalid_argument((data_dir / "manifest.json").string() +
                                 ": images of another shape than the run's");
   const nlohmann::json& regimes = reader.metadata_at("/regimes");
-  const nn::NpyArray regime = reader.read_rows("regime", 0, reader.rows());
+  const core::NpyArray regime = reader.read_rows("regime", 0, reader.rows());
   // the first observational rows; anchor 0's rows, one per regime, for the grid
   std::vector<std::int64_t> observational, anchor0;
-  const nn::NpyArray anchors = reader.read_rows("anchor", 0, reader.rows());
+  const core::NpyArray anchors = reader.read_rows("anchor", 0, reader.rows());
   for (std::int64_t r = 0; r < reader.rows(); ++r) {
     std::int32_t g;
     std::int64_t a;
@@ -343,7 +343,7 @@ ReportImages collect_report_images(const fs::path& run_dir, const fs::path& data
     return i;
   };
   if (!observational.empty() && occlusion > 0) {
-    const nn::NpyArray clean = reader.read_rows_at("images", observational);
+    const core::NpyArray clean = reader.read_rows_at("images", observational);
     std::vector<std::uint8_t> occluded = clean.data;
     occlude(occluded, observational, cams, side, side, occlusion, seed);
     nn::Buffer x(occluded.size());
@@ -372,7 +372,7 @@ ReportImages collect_report_images(const fs::path& run_dir, const fs::path& data
       }
   }
   if (!anchor0.empty()) {
-    const nn::NpyArray grid = reader.read_rows_at("images", anchor0);
+    const core::NpyArray grid = reader.read_rows_at("images", anchor0);
     out.intervention_rows.assign(static_cast<std::size_t>(cams), {});
     for (std::size_t k = 0; k < anchor0.size(); ++k) {
       std::int32_t g;

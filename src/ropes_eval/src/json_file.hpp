@@ -1,6 +1,7 @@
 #pragma once
 // Reading the JSON files of a run or a dataset (private to ropes_eval).
-#include <ropes_nn/npy.hpp>
+#include <ropes_core/file_format_error.hpp>
+#include <ropes_core/file_io.hpp>
 
 #include <nlohmann/json.hpp>
 
@@ -20,33 +21,33 @@ inline nlohmann::json numbers_or_null(const std::vector<double>& v) {
   return a;
 }
 
-// the file's JSON; nn::FileFormatError naming it when it cannot be opened or parsed, or
-// holds more than nn::kMaxJsonFileBytes (refused by its size, before it is read)
+// the file's JSON; core::FileFormatError naming it when it cannot be opened or parsed, or
+// holds more than core::kMaxJsonFileBytes (refused by its size, before it is read)
 inline nlohmann::json read_json_file(const std::filesystem::path& path) {
   const nlohmann::json j =
-      nlohmann::json::parse(nn::read_text_file(path, nn::kMaxJsonFileBytes), nullptr, false);
+      nlohmann::json::parse(core::read_text_file(path, core::kMaxJsonFileBytes), nullptr, false);
   if (j.is_discarded())
-    throw nn::FileFormatError(path.string() + ": not valid JSON");
+    throw core::FileFormatError(path.string() + ": not valid JSON");
   return j;
 }
 
 // the file's JSON, or a discarded value when it is missing or not JSON (a file that may be
-// absent); one over nn::kMaxJsonFileBytes is still refused (nn::FileFormatError)
+// absent); one over core::kMaxJsonFileBytes is still refused (core::FileFormatError)
 inline nlohmann::json read_json_if_there(const std::filesystem::path& path) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec))
     return nlohmann::json(nlohmann::json::value_t::discarded);
-  return nlohmann::json::parse(nn::read_text_file(path, nn::kMaxJsonFileBytes), nullptr, false);
+  return nlohmann::json::parse(core::read_text_file(path, core::kMaxJsonFileBytes), nullptr, false);
 }
 
-// the lines of a log that may be absent (none then); one over nn::kMaxLogFileBytes is
-// refused (nn::FileFormatError)
+// the lines of a log that may be absent (none then); one over core::kMaxLogFileBytes is
+// refused (core::FileFormatError)
 inline std::vector<std::string> read_log_lines(const std::filesystem::path& path) {
   std::vector<std::string> lines;
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec))
     return lines;
-  std::istringstream in(nn::read_text_file(path, nn::kMaxLogFileBytes));
+  std::istringstream in(core::read_text_file(path, core::kMaxLogFileBytes));
   std::string line;
   while (std::getline(in, line))
     lines.push_back(line);

@@ -1,6 +1,6 @@
 #include "ropes_eval/occlusion.hpp"
 
-#include <ropes_nn/philox.hpp>
+#include <ropes_core/philox.hpp>
 
 #include <algorithm>
 #include <stdexcept>
@@ -16,7 +16,7 @@ OcclusionSquare occlusion_square(std::uint64_t seed, std::int64_t sample, std::i
         std::to_string(width) + "x" + std::to_string(height) + " image, camera " +
         std::to_string(camera) + ", sample " + std::to_string(sample) +
         "; expected 1 <= size <= the image's shorter side, 0 <= camera < 65536, sample >= 0");
-  nn::PhiloxStream rng(
+  core::PhiloxStream rng(
       seed, (static_cast<std::uint64_t>(sample) << 16) | static_cast<std::uint64_t>(camera));
   // uniform on the corners that keep the square inside: [0, side - size]
   auto corner = [&](std::int64_t side) {

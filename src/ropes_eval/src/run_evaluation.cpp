@@ -1,13 +1,14 @@
 #include "ropes_eval/run_evaluation.hpp"
 
+#include <ropes_core/dataset.hpp>
+#include <ropes_core/npy.hpp>
+#include <ropes_core/package_share.hpp>
 #include <ropes_crl/dataset_version.hpp>
 #include <ropes_crl/estimator.hpp>
 #include <ropes_nn/adam.hpp>
 #include <ropes_nn/build_info.hpp>
-#include <ropes_nn/dataset.hpp>
 #include <ropes_nn/demand.hpp>
 #include <ropes_nn/layers.hpp>
-#include <ropes_nn/npy.hpp>
 #include <ropes_nn/ops.hpp>
 #include <ropes_nn/parallel.hpp>
 #include <ropes_nn/train_step.hpp>
@@ -102,13 +103,13 @@ MethodScores score_method(const std::string& name, const Eigen::MatrixXd& latent
 // the scores of `y` ([n, code]) on the k leading principal components of the codes in
 // `codes_npy` (f32 [rows, C, S, S], the trainer's cache, flattened as y is)
 Eigen::MatrixXd pca_of_codes(const fs::path& codes_npy, const Eigen::MatrixXd& y, std::int64_t k) {
-  const nn::NpyArray codes = nn::read_npy(codes_npy);
+  const core::NpyArray codes = core::read_npy(codes_npy);
   std::int64_t per = 1;
   for (std::size_t d = 1; d < codes.shape.size(); ++d)
     per *= codes.shape[d];
-  if (codes.dtype != nn::DType::kF32 || codes.shape.size() < 2 || per != y.cols())
-    throw nn::FileFormatError(codes_npy.string() + ": expected f32 codes of " +
-                              std::to_string(y.cols()) + " values a row, as the run's AE1 makes");
+  if (codes.dtype != core::DType::kF32 || codes.shape.size() < 2 || per != y.cols())
+    throw core::FileFormatError(codes_npy.string() + ": expected f32 codes of " +
+                                std::to_string(y.cols()) + " values a row, as the run's AE1 makes");
   const std::int64_t rows = codes.shape[0];
   Eigen::MatrixXd train(rows, per);
   for (std::int64_t r = 0; r < rows; ++r)
@@ -190,7 +191,7 @@ std::vector<double> detail::mlp_probe(const Eigen::MatrixXd& y, const Eigen::Mat
   const std::int64_t n = static_cast<std::int64_t>(cal.size());
   for (std::int64_t s = 0; s < steps; ++s) {
     const std::vector<std::int64_t> order =
-        nn::shuffled_indices(n, seed, static_cast<std::uint64_t>(s * 64 / n));
+        core::shuffled_indices(n, seed, static_cast<std::uint64_t>(s * 64 / n));
     std::vector<Eigen::Index> rows;
     for (std::int64_t k = s * 64; k < (s + 1) * 64; ++k)
       rows.push_back(cal[static_cast<std::size_t>(order[static_cast<std::size_t>(k % n)])]);
@@ -223,7 +224,7 @@ std::vector<ProtocolSplit> protocol_splits(std::int64_t n, std::int64_t repeats,
   std::vector<ProtocolSplit> splits(static_cast<std::size_t>(repeats));
   for (std::int64_t r = 0; r < repeats; ++r) {
     const std::vector<std::int64_t> order =
-        nn::shuffled_indices(n, seed, static_cast<std::uint64_t>(r));
+        core::shuffled_indices(n, seed, static_cast<std::uint64_t>(r));
     ProtocolSplit& s = splits[static_cast<std::size_t>(r)];
     for (std::int64_t i = 0; i < calibration + test; ++i)
       (i < calibration ? s.calibration : s.test)
@@ -242,7 +243,8 @@ std::vector<ProtocolSplit> protocol_splits(std::int64_t n, std::int64_t repeats,
 }
 
 fs::path installed_paper_results() {
-  return fs::path(ROPES_EVAL_SHARE_DIR) / "paper_results.json";
+  return core::find_package_share("ropes_eval", "paper_results.json", ROPES_EVAL_SHARE_DIR) /
+         "paper_results.json";
 }
 
 RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
@@ -274,7 +276,7 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
         std::to_string(a.max_size) + " px)");
 
   // the test dataset: not the training set, the run's cameras and image size
-  const nn::DatasetReader reader = nn::DatasetReader::open(data_dir);
+  const core::DatasetReader reader = core::DatasetReader::open(data_dir);
   crl::require_current_sim_dataset(reader);  // never the old reading of TN(mean, x)
   reader.verify();  // a shard damaged after generation is refused, never evaluated on
   const fs::path manifest = data_dir / "manifest.json";
@@ -305,7 +307,7 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
   for (std::size_t r = 0; r < regimes.size(); ++r)
     if (regimes[r].contains("joint") && regimes[r]["joint"].is_null())
       observational = static_cast<std::int32_t>(r);
-  const nn::NpyArray regime = reader.read_rows("regime", 0, reader.rows());
+  const core::NpyArray regime = reader.read_rows("regime", 0, reader.rows());
   std::vector<std::int64_t> rows;
   for (std::int64_t r = 0; r < reader.rows(); ++r) {
     std::int32_t g;
@@ -360,7 +362,7 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
   if (options.occlusion > 0 && !cached_codes)
     cache.clean_codes.resize(0, 0);
   Eigen::MatrixXd& y_clean = cache.clean_codes;
-  const nn::NpyArray angle_rows = reader.read_rows_at("angles", rows);
+  const core::NpyArray angle_rows = reader.read_rows_at("angles", rows);
   const std::int64_t angle_width = reader.column("angles").row_shape[0];
   // with robot_masks: per sample, robot pixels the squares hide and robot pixels in all
   const bool split_by_robot = options.occlusion > 0 && options.robot_masks != nullptr;
@@ -381,7 +383,7 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
   for (std::int64_t b = 0; b < n; b += 256) {
     const std::int64_t m = std::min<std::int64_t>(256, n - b);
     const std::vector<std::int64_t> part(rows.begin() + b, rows.begin() + b + m);
-    nn::NpyArray raw = reader.read_rows_at("images", part);
+    core::NpyArray raw = reader.read_rows_at("images", part);
     if (options.occlusion > 0) {
       if (!cached_codes) {
         const Eigen::MatrixXd clean = to_matrix(estimator.codes(to_input(raw.data, m)));

@@ -1,8 +1,8 @@
 #include "ropes_eval/screening.hpp"
 
+#include <ropes_core/dataset.hpp>
+#include <ropes_core/npy.hpp>
 #include <ropes_crl/dataset_version.hpp>
-#include <ropes_nn/dataset.hpp>
-#include <ropes_nn/npy.hpp>
 
 #include <Eigen/Core>
 
@@ -55,13 +55,13 @@ Screening screen_run(const fs::path& run_dir, const ScreeningOptions& options) {
   const nlohmann::json run = detail::read_json_file(run_json);
   if (!run.is_object() || run.value("format", "") != "ropes-run" || !run.contains("joints") ||
       !run["joints"].is_array() || !run.contains("data_dir") || !run["data_dir"].is_string())
-    throw nn::FileFormatError(run_json.string() +
-                              ": not a ropes run (format ropes-run with "
-                              "joints and data_dir)");
+    throw core::FileFormatError(run_json.string() +
+                                ": not a ropes run (format ropes-run with "
+                                "joints and data_dir)");
   for (const nlohmann::json& j : run["joints"]) {
     if (!j.is_string())
-      throw nn::FileFormatError(run_json.string() + ": joints holds a " + j.type_name() +
-                                "; expected joint names");
+      throw core::FileFormatError(run_json.string() + ": joints holds a " + j.type_name() +
+                                  "; expected joint names");
     s.joints.push_back(j.get<std::string>());
   }
   if (run.contains("config") && run["config"].is_object() && run["config"].contains("name") &&
@@ -72,26 +72,27 @@ Screening screen_run(const fs::path& run_dir, const ScreeningOptions& options) {
   // the codes of stage 1, row for row with the training set
   const fs::path codes_path = run_dir / "codes.npy";
   if (!fs::is_regular_file(codes_path))
-    throw nn::FileFormatError(codes_path.string() +
-                              " is missing: AE1 has not finished (ropes-train --stages ae1 "
-                              "writes it)");
-  const nn::NpyArray codes = nn::read_npy(codes_path);
+    throw core::FileFormatError(codes_path.string() +
+                                " is missing: AE1 has not finished (ropes-train --stages ae1 "
+                                "writes it)");
+  const core::NpyArray codes = core::read_npy(codes_path);
   const fs::path data_dir = run["data_dir"].get<std::string>();
-  const nn::DatasetReader reader = nn::DatasetReader::open(data_dir);
+  const core::DatasetReader reader = core::DatasetReader::open(data_dir);
   crl::require_current_sim_dataset(reader);
-  if (codes.dtype != nn::DType::kF32 || codes.shape.size() != 4 || codes.shape[0] != reader.rows())
-    throw nn::FileFormatError(
+  if (codes.dtype != core::DType::kF32 || codes.shape.size() != 4 ||
+      codes.shape[0] != reader.rows())
+    throw core::FileFormatError(
         codes_path.string() + ": expected f32 [" + std::to_string(reader.rows()) +
         ", C, H, W], the codes of every row of the training set " + data_dir.string());
   const std::int64_t rows = codes.shape[0], per = codes.shape[1] * codes.shape[2] * codes.shape[3];
 
   // the run's joints among the training set's angle columns
-  const nn::ColumnSpec &angles_column = reader.column("angles"),
-                       &anchor_column = reader.column("anchor");
-  if (angles_column.dtype != nn::DType::kF32 || angles_column.row_shape.size() != 1 ||
-      anchor_column.dtype != nn::DType::kI64 || !anchor_column.row_shape.empty())
-    throw nn::FileFormatError((data_dir / "manifest.json").string() +
-                              ": expected the columns angles f32 [n, joints] and anchor i64 [n]");
+  const core::ColumnSpec &angles_column = reader.column("angles"),
+                         &anchor_column = reader.column("anchor");
+  if (angles_column.dtype != core::DType::kF32 || angles_column.row_shape.size() != 1 ||
+      anchor_column.dtype != core::DType::kI64 || !anchor_column.row_shape.empty())
+    throw core::FileFormatError((data_dir / "manifest.json").string() +
+                                ": expected the columns angles f32 [n, joints] and anchor i64 [n]");
   const nlohmann::json& names = reader.metadata_at("/joint_names");
   const std::int64_t width = angles_column.row_shape[0];
   std::vector<std::int64_t> column;
@@ -101,8 +102,8 @@ Screening screen_run(const fs::path& run_dir, const ScreeningOptions& options) {
       if (names[i] == j)
         at = static_cast<std::int64_t>(i);
     if (at < 0 || at >= width)
-      throw nn::FileFormatError((data_dir / "manifest.json").string() + ": no angle column for '" +
-                                j + "'");
+      throw core::FileFormatError((data_dir / "manifest.json").string() +
+                                  ": no angle column for '" + j + "'");
     column.push_back(at);
   }
 
@@ -115,7 +116,7 @@ Screening screen_run(const fs::path& run_dir, const ScreeningOptions& options) {
       std::memcpy(&v, codes.data.data() + (r * per + c) * 4, 4);
       y(r, c) = v;
     }
-  const nn::NpyArray angle_rows = reader.read_rows("angles", 0, rows);
+  const core::NpyArray angle_rows = reader.read_rows("angles", 0, rows);
   for (std::int64_t r = 0; r < rows; ++r)
     for (std::int64_t k = 0; k < jn; ++k) {
       float v;
@@ -125,7 +126,7 @@ Screening screen_run(const fs::path& run_dir, const ScreeningOptions& options) {
     }
 
   // the split by anchor: every regime of an anchor on one side
-  const nn::NpyArray anchor_rows = reader.read_rows("anchor", 0, rows);
+  const core::NpyArray anchor_rows = reader.read_rows("anchor", 0, rows);
   std::vector<std::int64_t> anchor(static_cast<std::size_t>(rows));
   std::memcpy(anchor.data(), anchor_rows.data.data(), static_cast<std::size_t>(rows) * 8);
   std::vector<std::int64_t> distinct(anchor.begin(), anchor.end());
@@ -137,7 +138,7 @@ Screening screen_run(const fs::path& run_dir, const ScreeningOptions& options) {
                                 " anchor(s); screening holds some out, so it needs at least 2");
   const std::int64_t held = std::clamp<std::int64_t>(
       std::llround(options.test_fraction * static_cast<double>(anchors)), 1, anchors - 1);
-  const std::vector<std::int64_t> order = nn::shuffled_indices(anchors, options.seed, 0);
+  const std::vector<std::int64_t> order = core::shuffled_indices(anchors, options.seed, 0);
   std::set<std::int64_t> test_anchor;
   for (std::int64_t i = 0; i < held; ++i)
     test_anchor.insert(distinct[static_cast<std::size_t>(order[static_cast<std::size_t>(i)])]);

@@ -1,10 +1,10 @@
 #include "ropes_eval/supervised.hpp"
 
+#include <ropes_core/dataset.hpp>
+#include <ropes_core/npy.hpp>
 #include <ropes_crl/experiment_config.hpp>
 #include <ropes_crl/networks.hpp>
 #include <ropes_nn/adam.hpp>
-#include <ropes_nn/dataset.hpp>
-#include <ropes_nn/npy.hpp>
 #include <ropes_nn/ops.hpp>
 #include <ropes_nn/train_step.hpp>
 
@@ -63,20 +63,21 @@ SupervisedEncoder SupervisedEncoder::train(const fs::path& run_dir, double fract
   try {
     s->config = crl::ExperimentConfig::from_json(run.at("config"), (run_dir / "run.json").string());
   } catch (const std::exception& e) {
-    throw nn::FileFormatError(e.what());
+    throw core::FileFormatError(e.what());
   }
   const crl::ExperimentConfig& c = s->config;
   // the training set's codes (the run's frozen AE1) and angles, row for row
-  const nn::NpyArray codes = nn::read_npy(run_dir / "codes.npy");
-  const nn::DatasetReader reader = nn::DatasetReader::open(run.value("data_dir", ""));
-  if (codes.dtype != nn::DType::kF32 || codes.shape.size() != 4 || codes.shape[0] != reader.rows())
-    throw nn::FileFormatError((run_dir / "codes.npy").string() + ": expected f32 [" +
-                              std::to_string(reader.rows()) +
-                              ", C, 8, 8], the codes of every row of the training set");
+  const core::NpyArray codes = core::read_npy(run_dir / "codes.npy");
+  const core::DatasetReader reader = core::DatasetReader::open(run.value("data_dir", ""));
+  if (codes.dtype != core::DType::kF32 || codes.shape.size() != 4 ||
+      codes.shape[0] != reader.rows())
+    throw core::FileFormatError((run_dir / "codes.npy").string() + ": expected f32 [" +
+                                std::to_string(reader.rows()) +
+                                ", C, 8, 8], the codes of every row of the training set");
   const std::int64_t rows = codes.shape[0], per = codes.shape[1] * codes.shape[2] * codes.shape[3];
   if (rows < 2)
-    throw nn::FileFormatError((run_dir / "codes.npy").string() + ": " + std::to_string(rows) +
-                              " rows; the supervised baseline needs at least 2");
+    throw core::FileFormatError((run_dir / "codes.npy").string() + ": " + std::to_string(rows) +
+                                " rows; the supervised baseline needs at least 2");
   const nlohmann::json& names = reader.metadata_at("/joint_names");
   const std::int64_t width = reader.column("angles").row_shape[0];
   std::vector<std::int64_t> column;
@@ -86,17 +87,17 @@ SupervisedEncoder SupervisedEncoder::train(const fs::path& run_dir, double fract
       if (names[i] == j)
         at = static_cast<std::int64_t>(i);
     if (at < 0)
-      throw nn::FileFormatError(run.value("data_dir", "") + ": no joint '" + j + "'");
+      throw core::FileFormatError(run.value("data_dir", "") + ": no joint '" + j + "'");
     column.push_back(at);
   }
   const std::int64_t jn = static_cast<std::int64_t>(c.joints.size());
   // the labelled rows: a seeded prefix of one permutation, so 1 % is inside 5 %
-  const std::vector<std::int64_t> order = nn::shuffled_indices(rows, options.seed, 0);
+  const std::vector<std::int64_t> order = core::shuffled_indices(rows, options.seed, 0);
   const std::int64_t n = std::max<std::int64_t>(
       2, static_cast<std::int64_t>(std::llround(fraction * static_cast<double>(rows))));
   std::vector<std::int64_t> labelled(order.begin(), order.begin() + std::min(n, rows));
   std::sort(labelled.begin(), labelled.end());
-  const nn::NpyArray angle_rows = reader.read_rows_at("angles", labelled);
+  const core::NpyArray angle_rows = reader.read_rows_at("angles", labelled);
   std::vector<float> x(static_cast<std::size_t>(n * per)), t(static_cast<std::size_t>(n * jn));
   for (std::int64_t i = 0; i < n; ++i)
     std::memcpy(&x[static_cast<std::size_t>(i * per)],
@@ -150,7 +151,7 @@ SupervisedEncoder SupervisedEncoder::train(const fs::path& run_dir, double fract
   for (std::int64_t step = 0; step < steps; ++step) {
     const std::int64_t epoch = step / per_epoch, first = (step % per_epoch) * batch;
     const std::vector<std::int64_t> shuffled =
-        nn::shuffled_indices(n, options.seed, static_cast<std::uint64_t>(epoch) + 1);
+        core::shuffled_indices(n, options.seed, static_cast<std::uint64_t>(epoch) + 1);
     const std::int64_t m = std::min(batch, n - first);
     nn::Buffer xb(static_cast<std::size_t>(m * per));
     std::vector<float> tb(static_cast<std::size_t>(m * jn));

@@ -5,9 +5,9 @@
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
+#include <ropes_core/sha256.hpp>
 #include <ropes_eval/run_evaluation.hpp>
 #include <ropes_nn/build_info.hpp>
-#include <ropes_nn/sha256.hpp>
 
 #include <signal.h>
 #include <sys/wait.h>
@@ -355,8 +355,8 @@ TEST_F(Pipeline, TinyRunIsDeterministicPinnedAndLearnsTheSparsityPattern) {
     }
     std::string hashes;
     for (const char* f : kWeights)
-      hashes += ropes::nn::sha256_file(run_dir / f);
-    const std::string weights = ropes::nn::sha256_hex(hashes.data(), hashes.size());
+      hashes += ropes::core::sha256_file(run_dir / f);
+    const std::string weights = ropes::core::sha256_hex(hashes.data(), hashes.size());
     const nlohmann::json r = json_of(run_dir / "results.json");
     if (std::getenv("ROPES_PRINT_GOLDEN") != nullptr) {
       std::printf("golden %s: ae1 %.9g ae2 %.9g weights %s\n", golden->level, ae1_loss, ae2_loss,
@@ -443,7 +443,7 @@ TEST_F(Pipeline, SameBytesWhateverTheCpuReportsAndAtAnyThreadCount) {
     const fs::path here = dir_ / ("machines_" + variants[0].name);
     // hashes, so that a failure prints two lines instead of two weight files
     for (const char* f : kWeights)
-      EXPECT_EQ(ropes::nn::sha256_file(here / f), ropes::nn::sha256_file(out / f))
+      EXPECT_EQ(ropes::core::sha256_file(here / f), ropes::core::sha256_file(out / f))
           << f << " differs in " << v.name;
     EXPECT_EQ(methods.back(), methods.front()) << "results.json's methods in " << v.name;
   }

@@ -4,9 +4,9 @@
 
 #include <gtest/gtest.h>
 
-#include <ropes_nn/dataset.hpp>
-#include <ropes_nn/npy.hpp>
-#include <ropes_nn/philox.hpp>
+#include <ropes_core/dataset.hpp>
+#include <ropes_core/npy.hpp>
+#include <ropes_core/philox.hpp>
 
 #include <nlohmann/json.hpp>
 
@@ -21,7 +21,7 @@
 #include <vector>
 
 namespace fs = std::filesystem;
-namespace nn = ropes::nn;
+namespace core = ropes::core;
 using ropes::eval::screen_run;
 using ropes::eval::Screening;
 using ropes::eval::ScreeningOptions;
@@ -39,11 +39,12 @@ fs::path make_run(const std::string& name) {
       fs::temp_directory_path() / ("ropes_screening_" + name + "_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   fs::create_directories(dir / "run");
-  nn::NpyArray angles{nn::DType::kF32, {kRows, 3}, std::vector<std::uint8_t>(kRows * 3 * 4)};
-  nn::NpyArray anchor{nn::DType::kI64, {kRows}, std::vector<std::uint8_t>(kRows * 8)};
-  nn::NpyArray codes{nn::DType::kF32, {kRows, 1, 2, 2}, std::vector<std::uint8_t>(kRows * 4 * 4)};
+  core::NpyArray angles{core::DType::kF32, {kRows, 3}, std::vector<std::uint8_t>(kRows * 3 * 4)};
+  core::NpyArray anchor{core::DType::kI64, {kRows}, std::vector<std::uint8_t>(kRows * 8)};
+  core::NpyArray codes{
+      core::DType::kF32, {kRows, 1, 2, 2}, std::vector<std::uint8_t>(kRows * 4 * 4)};
   for (std::int64_t r = 0; r < kRows; ++r) {
-    nn::PhiloxStream rng(/*seed=*/11, /*stream=*/static_cast<std::uint64_t>(r));
+    core::PhiloxStream rng(/*seed=*/11, /*stream=*/static_cast<std::uint64_t>(r));
     float q[3], y[4];
     for (float& v : q)
       v = static_cast<float>(3 * rng.uniform_double() - 1.5);
@@ -56,12 +57,12 @@ fs::path make_run(const std::string& name) {
     std::memcpy(&anchor.data[static_cast<std::size_t>(r * 8)], &a, 8);
     std::memcpy(&codes.data[static_cast<std::size_t>(r * 16)], y, 16);
   }
-  const std::vector<nn::ColumnSpec> columns = {{"angles", nn::DType::kF32, {3}},
-                                               {"anchor", nn::DType::kI64, {}}};
-  nn::write_dataset_shard(dir / "data", 0, columns, {angles, anchor});
-  nn::write_dataset_manifest(dir / "data", columns, 1,
-                             R"({"joint_names": ["a", "b", "c"], "sim_dataset_version": 3})");
-  nn::write_npy(dir / "run" / "codes.npy", codes);
+  const std::vector<core::ColumnSpec> columns = {{"angles", core::DType::kF32, {3}},
+                                                 {"anchor", core::DType::kI64, {}}};
+  core::write_dataset_shard(dir / "data", 0, columns, {angles, anchor});
+  core::write_dataset_manifest(dir / "data", columns, 1,
+                               R"({"joint_names": ["a", "b", "c"], "sim_dataset_version": 3})");
+  core::write_npy(dir / "run" / "codes.npy", codes);
   const nlohmann::json run = {{"format", "ropes-run"},
                               {"format_version", 1},
                               {"joints", {"a", "b", "c"}},
@@ -142,7 +143,7 @@ TEST(Screening, RefusesARunWithoutCodesAndBadOptions) {
     try {
       screen_run(dir / "run", o);
       ADD_FAILURE() << "a run of a sim_dataset_version 2 training set was screened";
-    } catch (const nn::FileFormatError& e) {
+    } catch (const core::FileFormatError& e) {
       EXPECT_NE(std::string(e.what()).find("sim_dataset_version 2, made when ropes-generate"),
                 std::string::npos)
           << e.what();
@@ -154,12 +155,12 @@ TEST(Screening, RefusesARunWithoutCodesAndBadOptions) {
   try {
     screen_run(dir / "run", o);
     ADD_FAILURE() << "a run without codes.npy was screened";
-  } catch (const nn::FileFormatError& e) {
+  } catch (const core::FileFormatError& e) {
     EXPECT_NE(std::string(e.what()).find("codes.npy is missing: AE1 has not finished"),
               std::string::npos)
         << e.what();
   }
   std::ofstream(dir / "run" / "run.json") << "[1, 2]";
-  EXPECT_THROW(screen_run(dir / "run", o), nn::FileFormatError);
+  EXPECT_THROW(screen_run(dir / "run", o), core::FileFormatError);
   fs::remove_all(dir);
 }

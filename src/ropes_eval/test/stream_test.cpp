@@ -3,10 +3,10 @@
 // process, ropes-stream --replay, bad frames, ropes-eval --live and ropes-train --status.
 // Witness for the estimates: the Estimator run offline in this process on the very bytes
 // each frame carried.
+#include <ropes_core/dataset.hpp>
 #include <ropes_crl/estimator.hpp>
 #include <ropes_eval/correlation.hpp>
 #include <ropes_msgs/dds.hpp>
-#include <ropes_nn/dataset.hpp>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -272,7 +272,7 @@ TEST(StreamingNode, BadFramesAreRefusedCountedAndLoggedWithoutStoppingTheNode) {
 TEST(StreamingNode, ReplayOfADatasetAndTheLiveEvaluationOfIt) {
   const fs::path run = tiny_run("1c");
   const fs::path data = kDir / "data-1c";
-  const auto reader = ropes::nn::DatasetReader::open(data);
+  const auto reader = ropes::core::DatasetReader::open(data);
   const int rows = 40;
   msgs::Participant participant({"replay-test"});
   msgs::Subscriber<msgs::PoseEstimate> estimates(participant);

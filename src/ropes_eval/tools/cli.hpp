@@ -1,11 +1,11 @@
 #pragma once
-// Command-line helpers shared by ropes-eval and ropes-run (private to ropes_eval's tools).
-#include <ropes_nn/npy.hpp>
+// Command-line helpers shared by ropes-eval and ropes-run (private to ropes_eval's tools);
+// usage errors, number flags and run_main: ropes_core/cli.hpp.
+#include <ropes_core/cli.hpp>
+#include <ropes_core/file_io.hpp>
 
 #include <algorithm>
-#include <charconv>
 #include <cstdint>
-#include <cstdio>
 #include <filesystem>
 #include <stdexcept>
 #include <string>
@@ -15,23 +15,12 @@ namespace ropes::eval::tools {
 
 namespace fs = std::filesystem;
 
-/// a usage error: the tools print it and exit 2
-struct UsageError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
-
-template <class T>
-T parse_number(const std::string& flag, const std::string& text) {
-  T value{};
-  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
-  if (ec != std::errc() || end != text.data() + text.size())
-    throw UsageError(flag + " is '" + text + "'; expected a number");
-  return value;
-}
+using core::parse_number;
+using core::UsageError;
 
 inline void write_text(const fs::path& path, const std::string& text) {
-  ropes::nn::write_file_atomically(path, reinterpret_cast<const std::uint8_t*>(text.data()),
-                                   text.size());
+  ropes::core::write_file_atomically(path, reinterpret_cast<const std::uint8_t*>(text.data()),
+                                     text.size());
 }
 
 inline std::vector<std::string> split_list(const std::string& flag, const std::string& text) {
@@ -66,20 +55,6 @@ inline std::vector<double> parse_supervised(const std::string& flag, const std::
   std::sort(out.begin(), out.end());
   out.erase(std::unique(out.begin(), out.end()), out.end());
   return out;
-}
-
-/// A tool's main: runs `run`, prints an exception as "NAME: message" on stderr and exits 2
-/// for a UsageError, 1 for anything else.
-inline int run_main(const char* name, int (*run)(int, char**), int argc, char** argv) {
-  try {
-    return run(argc, argv);
-  } catch (const UsageError& e) {
-    std::fprintf(stderr, "%s: %s\n", name, e.what());
-    return 2;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "%s: %s\n", name, e.what());
-    return 1;
-  }
 }
 
 }  // namespace ropes::eval::tools

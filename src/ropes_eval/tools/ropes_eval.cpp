@@ -1,11 +1,11 @@
 // ropes-eval: how good is a trained run? Per-joint MCC and calibrated MSE on a held-out
 // dataset, beside the paper's numbers and the baselines.
+#include <ropes_core/npy.hpp>
 #include <ropes_eval/evaluation_report.hpp>
 #include <ropes_eval/html_report.hpp>
 #include <ropes_eval/run_evaluation.hpp>
 #include <ropes_eval/screening.hpp>
 #include <ropes_eval/supervised.hpp>
-#include <ropes_nn/npy.hpp>
 #include <ropes_nn/parallel.hpp>
 #include <ropes_sim/renderer.hpp>
 
@@ -217,5 +217,5 @@ int run(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   ropes::sim::tune_malloc_for_rendering();
-  return ropes::eval::tools::run_main("ropes-eval", run, argc, argv);
+  return ropes::core::run_main("ropes-eval", run, argc, argv);
 }

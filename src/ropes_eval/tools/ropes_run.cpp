@@ -1,9 +1,9 @@
 // ropes-run: the whole job on one experiment config — generate the training set, train the
 // three ROPES stages, evaluate the suites, write the report — with one progress display,
 // resumable at and inside its stages.
+#include <ropes_core/file_io.hpp>
 #include <ropes_crl/experiment_config.hpp>
 #include <ropes_crl/trainer.hpp>
-#include <ropes_nn/npy.hpp>
 #include <ropes_nn/parallel.hpp>
 #include <ropes_sim/dataset_config.hpp>
 #include <ropes_sim/dataset_generator.hpp>
@@ -72,7 +72,7 @@ nlohmann::json read_state(const fs::path& p) {
   if (!fs::exists(p))
     return nlohmann::json::object();
   const nlohmann::json j = nlohmann::json::parse(
-      ropes::nn::read_text_file(p, ropes::nn::kMaxJsonFileBytes), nullptr, false);
+      ropes::core::read_text_file(p, ropes::core::kMaxJsonFileBytes), nullptr, false);
   const bool shaped = j.is_object() && j.value("format", "") == "ropes-run" &&
                       (!j.contains("identity") || j["identity"].is_object()) &&
                       (!j.contains("stages") || j["stages"].is_object());
@@ -294,5 +294,5 @@ int run(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   ropes::sim::tune_malloc_for_rendering();
-  return ropes::eval::tools::run_main("ropes-run", run, argc, argv);
+  return ropes::core::run_main("ropes-run", run, argc, argv);
 }

@@ -1,11 +1,11 @@
 #include "suites.hpp"
 
+#include <ropes_core/dataset.hpp>
+#include <ropes_core/file_io.hpp>
 #include <ropes_crl/dataset_version.hpp>
 #include <ropes_eval/html_report.hpp>
 #include <ropes_eval/screening.hpp>
 #include <ropes_eval/supervised.hpp>
-#include <ropes_nn/dataset.hpp>
-#include <ropes_nn/npy.hpp>
 #include <ropes_sim/dataset_config.hpp>
 #include <ropes_sim/rig_renderer.hpp>
 
@@ -53,7 +53,7 @@ RunFacts run_facts(const fs::path& run_dir) {
   std::error_code ec;
   const nlohmann::json run =
       fs::is_regular_file(run_file, ec)
-          ? nlohmann::json::parse(nn::read_text_file(run_file, nn::kMaxJsonFileBytes), nullptr,
+          ? nlohmann::json::parse(core::read_text_file(run_file, core::kMaxJsonFileBytes), nullptr,
                                   false)
           : nlohmann::json();
   if (!run.is_object())
@@ -68,7 +68,7 @@ RunFacts run_facts(const fs::path& run_dir) {
   const fs::path manifest = fs::path(run.value("data_dir", "")) / "manifest.json";
   const nlohmann::json j =
       fs::is_regular_file(manifest, ec)
-          ? nlohmann::json::parse(nn::read_text_file(manifest, nn::kMaxJsonFileBytes), nullptr,
+          ? nlohmann::json::parse(core::read_text_file(manifest, core::kMaxJsonFileBytes), nullptr,
                                   false)
           : nlohmann::json();
   const nlohmann::json::json_pointer seed("/metadata/seed");
@@ -98,8 +98,8 @@ std::shared_ptr<RobotMasks> robot_masks_of(const TestData& test) {
     return out;
   }
   const fs::path manifest = test.dir / "manifest.json";
-  const nlohmann::json j =
-      nlohmann::json::parse(nn::read_text_file(manifest, nn::kMaxJsonFileBytes), nullptr, false);
+  const nlohmann::json j = nlohmann::json::parse(
+      core::read_text_file(manifest, core::kMaxJsonFileBytes), nullptr, false);
   const nlohmann::json::json_pointer names("/metadata/joint_names");
   if (!j.is_object() || !j.contains(names) || !j[names].is_array()) {
     out->why = manifest.string() + " has no metadata.joint_names";
@@ -118,7 +118,7 @@ std::shared_ptr<RobotMasks> robot_masks_of(const TestData& test) {
   }
   // the silhouettes are laid out as the test set's images: the same cameras and size
   const std::vector<std::int64_t> shape =
-      nn::DatasetReader::open(test.dir).column("images").row_shape;
+      core::DatasetReader::open(test.dir).column("images").row_shape;
   if (shape != std::vector<std::int64_t>{rig->cameras(), rig->height(), rig->width()}) {
     out->why = manifest.string() + ": its images are not the rig's cameras and size";
     return out;

@@ -1,8 +1,11 @@
 #include "test_data.hpp"
 
+#include <ropes_core/file_format_error.hpp>
+#include <ropes_core/file_io.hpp>
+#include <ropes_core/package_share.hpp>
+#include <ropes_core/plain_name.hpp>
+#include <ropes_core/sha256.hpp>
 #include <ropes_crl/dataset_version.hpp>
-#include <ropes_nn/npy.hpp>
-#include <ropes_nn/sha256.hpp>
 #include <ropes_sim/dataset_config.hpp>
 #include <ropes_sim/dataset_generator.hpp>
 
@@ -28,8 +31,8 @@ namespace {
 
 std::string read_text(const fs::path& p) {
   try {
-    return nn::read_text_file(p, nn::kMaxJsonFileBytes);
-  } catch (const nn::FileFormatError& e) {
+    return core::read_text_file(p, core::kMaxJsonFileBytes);
+  } catch (const core::FileFormatError& e) {
     throw std::invalid_argument(e.what());
   }
 }
@@ -41,12 +44,17 @@ nlohmann::json read_json(const fs::path& p) {
   return j;
 }
 
+// the installed ropes_sim's dataset configs (core::find_package_share)
+fs::path sim_datasets_dir() {
+  return core::find_package_share("ropes_sim", "datasets", ROPES_SIM_SHARE_DIR) / "datasets";
+}
+
 fs::path installed_config(const std::string& name) {
   // the name in a manifest comes from whoever wrote the dataset: never a path out of the
   // installed directory
-  if (!nn::is_plain_name(name))
+  if (!core::is_plain_name(name))
     return fs::path();
-  const fs::path p = fs::path(ROPES_SIM_DATASETS_DIR) / (name + ".json");
+  const fs::path p = sim_datasets_dir() / (name + ".json");
   return fs::is_regular_file(p) ? p : fs::path();
 }
 
@@ -59,7 +67,7 @@ fs::path installed_dataset_config(const std::string& name_or_path) {
   if (p.empty())
     throw std::invalid_argument("dataset config '" + name_or_path +
                                 "' is neither a file nor an installed ropes_sim config (in " +
-                                std::string(ROPES_SIM_DATASETS_DIR) + ")");
+                                sim_datasets_dir().string() + ")");
   return p;
 }
 
@@ -111,7 +119,7 @@ TestData ensure_test_data(const TestDataRequest& request) {
                                   "'s; pass a test set with --data DIR");
   config.anchors = std::max(config.anchors, request.min_observational);
   const std::string identity = config.to_json() + read_text(config.distribution);
-  const std::string key = nn::sha256_hex(identity.data(), identity.size()).substr(0, 12);
+  const std::string key = core::sha256_hex(identity.data(), identity.size()).substr(0, 12);
   TestData out;
   out.config_name = name;
   out.config_file = file;

@@ -1,10 +1,12 @@
 // ropes-echo: prints the samples of one ROPES topic, human-readable or as JSON lines.
+#include <ropes_core/cli.hpp>
 #include <ropes_msgs/dds.hpp>
 
 #include <nlohmann/json.hpp>
 
 #include <cstdio>
 #include <iostream>
+#include <limits>
 #include <string>
 
 namespace {
@@ -28,9 +30,7 @@ options:
 The domain is ROPES_DDS_DOMAIN (default 0); ROPES_DDS_LOOPBACK=1 keeps to this host.
 )";
 
-struct UsageError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
+using ropes::core::UsageError;
 
 template <class T>
 nlohmann::json list(const T& values) {
@@ -189,24 +189,16 @@ int run(int argc, char** argv) {
       if (i + 1 >= argc)
         throw UsageError("'" + a + "' needs a value (see --help)");
       const std::string v = argv[++i];
-      try {
-        std::size_t end = 0;
-        if (a == "--count")
-          count = std::stoll(v, &end);
-        else if (a == "--timeout")
-          timeout_s = std::stod(v, &end);
-        else if (a == "--name")
-          name = v, end = v.size();
-        else
-          throw UsageError("unknown option '" + a + "' (see --help)");
-        if (end != v.size())
-          throw std::invalid_argument(v);
-      } catch (const UsageError&) {
-        throw;
-      } catch (const std::exception&) {
-        throw UsageError(a + " is '" + v + "'; expected a number");
-      }
-      if ((a == "--count" && count < 1) || (a == "--timeout" && !(timeout_s > 0)))
+      if (a == "--count")
+        count =
+            ropes::core::parse_number<long long>(a, v, 1, std::numeric_limits<long long>::max());
+      else if (a == "--timeout")
+        timeout_s = ropes::core::parse_number<double>(a, v);
+      else if (a == "--name")
+        name = v;
+      else
+        throw UsageError("unknown option '" + a + "' (see --help)");
+      if (a == "--timeout" && !(timeout_s > 0))
         throw UsageError(a + " is '" + v + "'; expected a positive number");
       continue;
     }
@@ -231,13 +223,5 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  try {
-    return run(argc, argv);
-  } catch (const UsageError& e) {
-    std::fprintf(stderr, "ropes-echo: %s\n", e.what());
-    return 2;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "ropes-echo: %s\n", e.what());
-    return 1;
-  }
+  return ropes::core::run_main("ropes-echo", run, argc, argv);
 }

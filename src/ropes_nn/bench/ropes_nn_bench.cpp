@@ -14,15 +14,16 @@
 #include <string>
 #include <vector>
 
+#include "ropes_core/philox.hpp"
 #include "ropes_nn/batch_loader.hpp"
 #include "ropes_nn/benchmark.hpp"
 #include "ropes_nn/build_info.hpp"
 #include "ropes_nn/layers.hpp"
 #include "ropes_nn/ops.hpp"
 #include "ropes_nn/parallel.hpp"
-#include "ropes_nn/philox.hpp"
 
 using namespace ropes::nn;
+using namespace ropes::core;
 using Clock = std::chrono::steady_clock;
 
 namespace {

@@ -8,12 +8,12 @@
 // read the radius, saves DIR/checkpoint.safetensors every K steps and DIR/weights.safetensors
 // at the end. Started again after a kill, it resumes from the checkpoint. Without DIR it
 // works in a temporary directory and removes it.
+#include <ropes_core/dataset.hpp>
+#include <ropes_core/philox.hpp>
 #include <ropes_nn/batch_loader.hpp>
 #include <ropes_nn/checkpoint.hpp>
-#include <ropes_nn/dataset.hpp>
 #include <ropes_nn/layers.hpp>
 #include <ropes_nn/parallel.hpp>
-#include <ropes_nn/philox.hpp>
 #include <ropes_nn/train_step.hpp>
 
 #include <unistd.h>
@@ -26,6 +26,7 @@
 #include <string>
 
 using namespace ropes::nn;
+using namespace ropes::core;
 namespace fs = std::filesystem;
 
 // 480 discs: image u8 [n, 1, 16, 16], radius f32 [n], split i32 [n] (0 train, 1 held out)

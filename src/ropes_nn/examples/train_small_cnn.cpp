@@ -1,9 +1,9 @@
 // Example from the ropes_nn README: define a small CNN, train it a few steps on generated
 // data (estimate the radius of a disc from its 16x16 image), save it and load it back.
+#include <ropes_core/philox.hpp>
 #include <ropes_nn/checkpoint.hpp>
 #include <ropes_nn/layers.hpp>
 #include <ropes_nn/ops.hpp>
-#include <ropes_nn/philox.hpp>
 #include <ropes_nn/train_step.hpp>
 
 #include <cmath>
@@ -12,6 +12,7 @@
 #include <memory>
 
 using namespace ropes::nn;
+using namespace ropes::core;
 
 // a batch of discs with random radii in [2, 7]: images [n, 1, 16, 16], radii [n, 1]
 void make_batch(std::uint64_t batch_index, int n, Tensor* images, Tensor* radii) {

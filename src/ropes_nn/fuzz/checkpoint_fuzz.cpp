@@ -9,13 +9,13 @@
 #include <string>
 
 #include "fuzz_module.hpp"
+#include "ropes_core/file_format_error.hpp"
+#include "ropes_core/fuzz_input.hpp"
 #include "ropes_nn/checkpoint.hpp"
-#include "ropes_nn/fuzz_input.hpp"
-#include "ropes_nn/npy.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using namespace ropes::nn;
-  static const fuzz::ScratchDir scratch;
+  static const ropes::core::fuzz::ScratchDir scratch;
   scratch.clear();
   const auto file = scratch.write("checkpoint.safetensors",
                                   std::string(reinterpret_cast<const char*>(data), size));
@@ -33,7 +33,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         reloaded.progress.position != loaded.progress.position ||
         reloaded.progress.seed != loaded.progress.seed || reloaded.metadata != loaded.metadata)
       std::abort();
-  } catch (const FileFormatError&) {
+  } catch (const ropes::core::FileFormatError&) {
   }
   for (const bool strict : {true, false}) {
     auto module = fuzz::fuzz_module();
@@ -42,7 +42,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     options.prefix = strict ? "" : "model.";
     try {
       load_module(*module, file, options);
-    } catch (const FileFormatError&) {
+    } catch (const ropes::core::FileFormatError&) {
     }
   }
   return 0;

@@ -1,6 +1,7 @@
-// ropes_nn_fuzz_make_corpus DIR: writes the seed corpora of ropes_nn's checkpoint, dataset
-// and safetensors harnesses into DIR/<harness>/ (fuzz/corpus/ holds what it wrote; the npy
-// corpus is numpy's files from test/fixtures). Run by hand when a format changes; the seeds
+// ropes_nn_fuzz_make_corpus DIR: writes the seed corpora of ropes_nn's checkpoint and
+// safetensors harnesses and of ropes_core's dataset harness into DIR/<harness>/ (fuzz/corpus/
+// of each package holds what it wrote; ropes_core's npy corpus is numpy's files from its
+// test/fixtures). Run by hand when a format changes; the seeds
 // of an older format stay (checkpoint/training_state.safetensors and weights.safetensors are
 // format_version 1, unsealed; the *_sealed ones and safetensors/sealed.safetensors are what
 // this writes now).
@@ -13,13 +14,14 @@
 #include <vector>
 
 #include "fuzz_module.hpp"
+#include "ropes_core/dataset.hpp"
+#include "ropes_core/fuzz_input.hpp"
 #include "ropes_nn/checkpoint.hpp"
-#include "ropes_nn/dataset.hpp"
-#include "ropes_nn/fuzz_input.hpp"
 #include "ropes_nn/safetensors.hpp"
 
 namespace fs = std::filesystem;
 using namespace ropes::nn;
+using namespace ropes::core;
 
 namespace {
 
@@ -55,7 +57,7 @@ int main(int argc, char** argv) {
   fs::create_directories(tmp);
 
   // checkpoint: a whole training state, and a weights file
-  auto net = fuzz::fuzz_module();
+  auto net = ropes::nn::fuzz::fuzz_module();
   net->initialize(7);
   Adam adam(net->named_parameters());
   save_checkpoint(tmp / "c.safetensors", *net, adam, LrSchedule::cosine(1e-3, 100, 1e-5, 10),
@@ -82,10 +84,10 @@ int main(int argc, char** argv) {
   write_dataset_shard(ds, 0, columns, {f32({3, 2}, {0, 1, 2, 3, 4, 5}), y}, "fuzz");
   write_dataset_manifest(ds, columns, 1, R"({"robot": "none"})", "fuzz");
   put(out / "dataset" / "three_rows.txt",
-      fuzz::join_sections({{"", slurp(ds / "manifest.json")},
-                           {"marker", slurp(ds / "shards" / "00000.json")},
-                           {"x", slurp(ds / "shards" / "x-00000.npy")},
-                           {"y", slurp(ds / "shards" / "y-00000.npy")}}));
+      ropes::core::fuzz::join_sections({{"", slurp(ds / "manifest.json")},
+                                        {"marker", slurp(ds / "shards" / "00000.json")},
+                                        {"x", slurp(ds / "shards" / "x-00000.npy")},
+                                        {"y", slurp(ds / "shards" / "y-00000.npy")}}));
   fs::remove_all(tmp);
   return 0;
 }

@@ -12,7 +12,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   Safetensors file;
   try {
     file = parse_safetensors(data, size, "input.safetensors");
-  } catch (const FileFormatError&) {
+  } catch (const ropes::core::FileFormatError&) {
     return 0;
   }
   const std::vector<std::uint8_t> bytes = serialize_safetensors(file);
@@ -21,7 +21,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     std::abort();
   for (std::size_t i = 0; i < file.tensors.size(); ++i) {
     const auto& [name, array] = file.tensors[i];
-    const NpyArray* found = again.find(name);
+    const ropes::core::NpyArray* found = again.find(name);
     if (found == nullptr || found->dtype != array.dtype || found->shape != array.shape ||
         found->data != array.data)
       std::abort();

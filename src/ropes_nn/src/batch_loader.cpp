@@ -23,15 +23,15 @@ std::string value_list(const std::vector<std::int64_t>& values) {
 }
 
 // one integer per row of a u8, i32 or i64 column
-std::vector<std::int64_t> integer_values(const NpyArray& a) {
+std::vector<std::int64_t> integer_values(const core::NpyArray& a) {
   const std::size_t n = static_cast<std::size_t>(a.shape.empty() ? 0 : a.shape[0]);
   std::vector<std::int64_t> out(n);
   for (std::size_t i = 0; i < n; ++i) {
     switch (a.dtype) {
-      case DType::kU8:
+      case core::DType::kU8:
         out[i] = a.data[i];
         break;
-      case DType::kI32: {
+      case core::DType::kI32: {
         std::int32_t v;
         std::memcpy(&v, a.data.data() + 4 * i, 4);
         out[i] = v;
@@ -49,30 +49,30 @@ std::vector<std::int64_t> integer_values(const NpyArray& a) {
 }
 
 // a column's bytes as floats: u8 / 255, others converted
-void to_floats(const NpyArray& a, float* out) {
+void to_floats(const core::NpyArray& a, float* out) {
   const std::int64_t n = a.element_count();
   const std::uint8_t* p = a.data.data();
   for (std::int64_t i = 0; i < n; ++i) {
     switch (a.dtype) {
-      case DType::kU8:
+      case core::DType::kU8:
         out[i] = static_cast<float>(p[i]) / 255.0f;
         break;
-      case DType::kI32: {
+      case core::DType::kI32: {
         std::int32_t v;
         std::memcpy(&v, p + 4 * i, 4);
         out[i] = static_cast<float>(v);
         break;
       }
-      case DType::kI64: {
+      case core::DType::kI64: {
         std::int64_t v;
         std::memcpy(&v, p + 8 * i, 8);
         out[i] = static_cast<float>(v);
         break;
       }
-      case DType::kF32:
+      case core::DType::kF32:
         std::memcpy(out + i, p + 4 * i, 4);
         break;
-      case DType::kF64: {
+      case core::DType::kF64: {
         double v;
         std::memcpy(&v, p + 8 * i, 8);
         out[i] = static_cast<float>(v);
@@ -109,7 +109,7 @@ const Tensor& Batch::tensor(const std::string& name) const {
   return it->second;
 }
 
-const NpyArray& Batch::array(const std::string& name) const {
+const core::NpyArray& Batch::array(const std::string& name) const {
   const auto it = arrays.find(name);
   if (it == arrays.end()) {
     throw std::out_of_range("Batch::array: no column '" + name +
@@ -119,7 +119,7 @@ const NpyArray& Batch::array(const std::string& name) const {
 }
 
 struct BatchLoader::State {
-  const DatasetReader& reader;
+  const core::DatasetReader& reader;
   BatchLoaderOptions options;
   std::vector<std::int64_t> rows;
   DataCursor cursor;
@@ -143,7 +143,7 @@ struct BatchLoader::State {
   bool stop = false;
   std::thread worker;
 
-  State(const DatasetReader& r, BatchLoaderOptions o) : reader(r), options(std::move(o)) {}
+  State(const core::DatasetReader& r, BatchLoaderOptions o) : reader(r), options(std::move(o)) {}
 
   std::int64_t batch_rows(const DataCursor& c) const {
     return std::min(options.batch_size, static_cast<std::int64_t>(rows.size()) - c.position);
@@ -160,8 +160,8 @@ struct BatchLoader::State {
   // the batch at `c`: a pure function of the dataset, the options and `c`
   Batch build(const DataCursor& c, Order* order) const {
     if (options.shuffle && order->epoch != c.epoch) {
-      order->positions = shuffled_indices(static_cast<std::int64_t>(rows.size()), options.seed,
-                                          static_cast<std::uint64_t>(c.epoch));
+      order->positions = core::shuffled_indices(static_cast<std::int64_t>(rows.size()),
+                                                options.seed, static_cast<std::uint64_t>(c.epoch));
       order->epoch = c.epoch;
     }
     Batch b;
@@ -173,7 +173,7 @@ struct BatchLoader::State {
       b.rows.push_back(rows[at]);
     }
     for (const std::string& name : options.columns) {
-      const NpyArray raw = reader.read_rows_at(name, b.rows);
+      const core::NpyArray raw = reader.read_rows_at(name, b.rows);
       Buffer values(static_cast<std::size_t>(raw.element_count()));
       to_floats(raw, values.data());
       b.tensors.emplace(name, Tensor(Shape(raw.shape), std::move(values)));
@@ -225,7 +225,7 @@ struct BatchLoader::State {
   }
 };
 
-BatchLoader::BatchLoader(const DatasetReader& reader, BatchLoaderOptions options)
+BatchLoader::BatchLoader(const core::DatasetReader& reader, BatchLoaderOptions options)
     : state_(std::make_unique<State>(reader, std::move(options))) {
   State& s = *state_;
   const BatchLoaderOptions& o = s.options;
@@ -239,7 +239,7 @@ BatchLoader::BatchLoader(const DatasetReader& reader, BatchLoaderOptions options
   std::set<std::string> names;
   for (const auto* list : {&o.columns, &o.raw_columns}) {
     for (const std::string& name : *list) {
-      const ColumnSpec& spec = reader.column(name);  // std::out_of_range naming it
+      const core::ColumnSpec& spec = reader.column(name);  // std::out_of_range naming it
       if (!names.insert(name).second) {
         throw std::invalid_argument(std::string(kWhere) + "column '" + name +
                                     "' is named twice; expected each column once");
@@ -276,10 +276,11 @@ BatchLoader::BatchLoader(const DatasetReader& reader, BatchLoaderOptions options
              : "filter_column '" + o.filter_column + "' given without filter_values"));
   }
   if (!o.filter_column.empty()) {
-    const ColumnSpec& spec = reader.column(o.filter_column);
-    if (!spec.row_shape.empty() || spec.dtype == DType::kF32 || spec.dtype == DType::kF64) {
+    const core::ColumnSpec& spec = reader.column(o.filter_column);
+    if (!spec.row_shape.empty() || spec.dtype == core::DType::kF32 ||
+        spec.dtype == core::DType::kF64) {
       throw std::invalid_argument(std::string(kWhere) + "filter_column '" + o.filter_column +
-                                  "' is " + dtype_name(spec.dtype) + " with rows of shape [" +
+                                  "' is " + core::dtype_name(spec.dtype) + " with rows of shape [" +
                                   std::to_string(spec.row_shape.size()) +
                                   " dims]; expected an integer column (u8, i32, i64) of one "
                                   "value per row");

@@ -7,7 +7,8 @@
 #include <set>
 #include <stdexcept>
 
-#include "json_text.hpp"
+#include "ropes_core/file_io.hpp"
+#include "ropes_core/json_text.hpp"
 #include "ropes_nn/safetensors.hpp"
 
 namespace ropes::nn {
@@ -16,7 +17,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using Json = nlohmann::json;
-using detail::describe;
+using core::describe;
 
 constexpr const char* kModelPrefix = "model.";
 constexpr const char* kOptimizerPrefix = "optimizer.";
@@ -25,7 +26,7 @@ constexpr const char* kSecondMoment = "optimizer.exp_avg_sq.";
 constexpr const char* kStepCount = "optimizer.step.";
 
 [[noreturn]] void fail(const std::string& name, const std::string& what) {
-  throw FileFormatError(name + ": " + what);
+  throw core::FileFormatError(name + ": " + what);
 }
 
 bool starts_with(const std::string& text, const std::string& prefix) {
@@ -39,9 +40,10 @@ std::string shape_text(const std::vector<std::int64_t>& shape) {
   return out + "]";
 }
 
-NpyArray f32_array(const float* values, const std::vector<std::int64_t>& shape, std::size_t count) {
-  NpyArray a;
-  a.dtype = DType::kF32;
+core::NpyArray f32_array(const float* values, const std::vector<std::int64_t>& shape,
+                         std::size_t count) {
+  core::NpyArray a;
+  a.dtype = core::DType::kF32;
   a.shape = shape;
   a.data.resize(count * sizeof(float));
   if (count > 0)
@@ -49,25 +51,26 @@ NpyArray f32_array(const float* values, const std::vector<std::int64_t>& shape, 
   return a;
 }
 
-NpyArray i64_scalar(std::int64_t value) {
-  NpyArray a;
-  a.dtype = DType::kI64;
+core::NpyArray i64_scalar(std::int64_t value) {
+  core::NpyArray a;
+  a.dtype = core::DType::kI64;
   a.data.resize(sizeof(value));
   std::memcpy(a.data.data(), &value, sizeof(value));
   return a;
 }
 
-// the array `key` of the file, of `dtype` and `shape`; FileFormatError naming both otherwise
-const NpyArray& expect_tensor(const Safetensors& file, const std::string& name,
-                              const std::string& key, DType dtype,
-                              const std::vector<std::int64_t>& shape, const std::string& owner) {
-  const NpyArray* a = file.find(key);
+// the array `key` of the file, of `dtype` and `shape`; core::FileFormatError naming both otherwise
+const core::NpyArray& expect_tensor(const Safetensors& file, const std::string& name,
+                                    const std::string& key, core::DType dtype,
+                                    const std::vector<std::int64_t>& shape,
+                                    const std::string& owner) {
+  const core::NpyArray* a = file.find(key);
   if (!a)
     fail(name, "has no tensor '" + key + "' for " + owner);
   if (a->dtype != dtype || a->shape != shape) {
-    fail(name, "tensor '" + key + "' is " + dtype_name(a->dtype) + " " + shape_text(a->shape) +
-                   "; " + owner + " is " + dtype_name(dtype) + " " + shape_text(shape) +
-                   " (a file of another architecture?)");
+    fail(name, "tensor '" + key + "' is " + core::dtype_name(a->dtype) + " " +
+                   shape_text(a->shape) + "; " + owner + " is " + core::dtype_name(dtype) + " " +
+                   shape_text(shape) + " (a file of another architecture?)");
   }
   return *a;
 }
@@ -87,7 +90,7 @@ std::string prefix_hint(const Safetensors& file, const std::string& parameter) {
 // module parameters matched with the file's arrays, every check done before any write
 struct WeightPlan {
   std::vector<std::pair<std::string, Tensor>> targets;
-  std::vector<const NpyArray*> sources;
+  std::vector<const core::NpyArray*> sources;
   std::vector<std::string> missing, unexpected;
 };
 
@@ -106,7 +109,7 @@ WeightPlan plan_weights(const Module& module, const Safetensors& file, const std
       plan.missing.push_back(pname);
       continue;
     }
-    plan.sources.push_back(&expect_tensor(file, name, key, DType::kF32, t.shape().dims(),
+    plan.sources.push_back(&expect_tensor(file, name, key, core::DType::kF32, t.shape().dims(),
                                           "parameter '" + pname + "'"));
     plan.targets.emplace_back(pname, t);
   }
@@ -125,7 +128,7 @@ WeightPlan plan_weights(const Module& module, const Safetensors& file, const std
 void apply_weights(Module& module, const WeightPlan& plan) {
   for (std::size_t i = 0; i < plan.targets.size(); ++i) {
     Tensor t = plan.targets[i].second;
-    const NpyArray& a = *plan.sources[i];
+    const core::NpyArray& a = *plan.sources[i];
     if (!a.data.empty())
       std::memcpy(t.mutable_data(), a.data.data(), a.data.size());
     module.mark_initialized(plan.targets[i].first);
@@ -223,7 +226,7 @@ void save_checkpoint(const fs::path& path, const Module& module, const Adam& ada
     file.tensors.emplace_back(kStepCount + name, i64_scalar(adam.param_steps(i)));
   }
   const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
-  remove_stale_temporaries(dir, path.filename().string());
+  core::remove_stale_temporaries(dir, path.filename().string());
   write_safetensors(path, file, /*sealed=*/true);
 }
 
@@ -239,7 +242,7 @@ LoadedCheckpoint load_checkpoint(const fs::path& path, Module& module, Adam& ada
   }
   const std::string where = std::string("metadata[\"") + kCheckpointMetadataKey + "\"]";
   Json state;
-  const std::string problem = detail::parse_json(meta->second, &state);
+  const std::string problem = core::parse_json(meta->second, &state);
   if (!problem.empty())
     fail(name, where + " " + problem);
   if (!state.is_object())
@@ -293,15 +296,18 @@ LoadedCheckpoint load_checkpoint(const fs::path& path, Module& module, Adam& ada
   // every tensor: the module's weights, the optimiser's state, nothing else
   const WeightPlan weights = plan_weights(module, file, name, LoadOptions{kModelPrefix, true});
   std::set<std::string> expected;
-  std::vector<const NpyArray*> first, second;
+  std::vector<const core::NpyArray*> first, second;
   std::vector<std::int64_t> counts;
   for (std::size_t i = 0; i < adam.params().size(); ++i) {
     const std::string& pname = adam.names()[i];
     const std::vector<std::int64_t> shape = adam.params()[i].shape().dims();
     const std::string owner = "the optimiser's parameter '" + pname + "'";
-    first.push_back(&expect_tensor(file, name, kFirstMoment + pname, DType::kF32, shape, owner));
-    second.push_back(&expect_tensor(file, name, kSecondMoment + pname, DType::kF32, shape, owner));
-    const NpyArray& t = expect_tensor(file, name, kStepCount + pname, DType::kI64, {}, owner);
+    first.push_back(
+        &expect_tensor(file, name, kFirstMoment + pname, core::DType::kF32, shape, owner));
+    second.push_back(
+        &expect_tensor(file, name, kSecondMoment + pname, core::DType::kF32, shape, owner));
+    const core::NpyArray& t =
+        expect_tensor(file, name, kStepCount + pname, core::DType::kI64, {}, owner);
     std::int64_t count = 0;
     std::memcpy(&count, t.data.data(), sizeof(count));
     if (count < 0 || count > step) {

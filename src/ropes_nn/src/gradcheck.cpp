@@ -6,9 +6,9 @@
 #include <sstream>
 #include <string>
 
+#include "ropes_core/philox.hpp"
 #include "ropes_nn/module.hpp"
 #include "ropes_nn/ops.hpp"
-#include "ropes_nn/philox.hpp"
 
 namespace ropes::nn {
 
@@ -24,7 +24,7 @@ double project(const Tensor& y, const std::vector<float>& w) {
 }
 
 std::vector<float> projection_weights(const Shape& shape, std::uint64_t seed) {
-  PhiloxStream rng(seed, 0);
+  core::PhiloxStream rng(seed, 0);
   std::vector<float> w(static_cast<std::size_t>(shape.numel()));
   for (float& v : w)
     v = static_cast<float>(rng.normal());

@@ -6,7 +6,7 @@
 #include <limits>
 #include <stdexcept>
 
-#include "json_text.hpp"
+#include "ropes_core/json_text.hpp"
 
 namespace ropes::nn {
 
@@ -61,7 +61,7 @@ double number_field(const Json& j, const char* name, const std::string& where) {
 std::int64_t count_field(const Json& j, const char* name, const std::string& where) {
   const Json& v = field_of(j, name, where);
   if (!v.is_number_integer()) {
-    throw std::invalid_argument(where + "." + name + " is " + detail::describe(v) +
+    throw std::invalid_argument(where + "." + name + " is " + core::describe(v) +
                                 "; expected an integer");
   }
   return v.get<std::int64_t>();
@@ -200,11 +200,11 @@ std::string LrSchedule::to_json() const {
 
 LrSchedule LrSchedule::from_json(const std::string& text, const std::string& where) {
   Json j;
-  const std::string problem = detail::parse_json(text, &j);
+  const std::string problem = core::parse_json(text, &j);
   if (!problem.empty())
     throw std::invalid_argument(where + " " + problem);
   if (!j.is_object())
-    throw std::invalid_argument(where + " is " + detail::describe(j) + "; expected an object");
+    throw std::invalid_argument(where + " is " + core::describe(j) + "; expected an object");
   const Json& kind = field_of(j, "kind", where);
   const std::string name = kind.is_string() ? kind.get<std::string>() : "";
   // the factories' checks, with `where` in their messages
@@ -236,7 +236,7 @@ LrSchedule LrSchedule::from_json(const std::string& text, const std::string& whe
       throw std::invalid_argument(where + message.substr(generic.size()));
     throw;
   }
-  throw std::invalid_argument(where + ".kind is " + detail::describe(kind) +
+  throw std::invalid_argument(where + ".kind is " + core::describe(kind) +
                               "; expected \"constant\", \"linear_warmup\", \"cosine\" or "
                               "\"one_cycle\"");
 }

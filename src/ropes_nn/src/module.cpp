@@ -4,8 +4,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "ropes_core/philox.hpp"
 #include "ropes_nn/ops.hpp"
-#include "ropes_nn/philox.hpp"
 
 namespace ropes::nn {
 
@@ -89,7 +89,7 @@ void Module::initialize_tree(std::uint64_t seed, const std::string& scope,
     float* v = p.value.mutable_data();
     const std::int64_t n = p.value.numel();
     if (p.init == "lecun_normal") {
-      PhiloxStream rng(seed, fnv1a64(scope.empty() ? full : scope + "/" + full));
+      core::PhiloxStream rng(seed, fnv1a64(scope.empty() ? full : scope + "/" + full));
       const double scale = std::sqrt(1.0 / static_cast<double>(p.fan_in)) / kTruncatedStd;
       for (std::int64_t i = 0; i < n; ++i)
         v[i] = static_cast<float>(scale * rng.truncated_normal(-2.0, 2.0));

@@ -9,8 +9,9 @@
 #include <set>
 #include <stdexcept>
 
-#include "json_text.hpp"
-#include "ropes_nn/sha256.hpp"
+#include "ropes_core/file_io.hpp"
+#include "ropes_core/json_text.hpp"
+#include "ropes_core/sha256.hpp"
 
 namespace ropes::nn {
 
@@ -19,31 +20,31 @@ namespace {
 using Json = nlohmann::json;
 
 [[noreturn]] void fail(const std::string& name, const std::string& what) {
-  throw FileFormatError(name + ": " + what);
+  throw core::FileFormatError(name + ": " + what);
 }
 
-const char* dtype_code(DType d) {
+const char* dtype_code(core::DType d) {
   switch (d) {
-    case DType::kU8:
+    case core::DType::kU8:
       return "U8";
-    case DType::kI32:
+    case core::DType::kI32:
       return "I32";
-    case DType::kI64:
+    case core::DType::kI64:
       return "I64";
-    case DType::kF32:
+    case core::DType::kF32:
       return "F32";
-    case DType::kF64:
+    case core::DType::kF64:
       return "F64";
   }
   return "?";
 }
 
-bool parse_dtype(const std::string& code, DType* out) {
-  static const std::pair<const char*, DType> kCodes[] = {{"U8", DType::kU8},
-                                                         {"I32", DType::kI32},
-                                                         {"I64", DType::kI64},
-                                                         {"F32", DType::kF32},
-                                                         {"F64", DType::kF64}};
+bool parse_dtype(const std::string& code, core::DType* out) {
+  static const std::pair<const char*, core::DType> kCodes[] = {{"U8", core::DType::kU8},
+                                                               {"I32", core::DType::kI32},
+                                                               {"I64", core::DType::kI64},
+                                                               {"F32", core::DType::kF32},
+                                                               {"F64", core::DType::kF64}};
   for (const auto& [text, dtype] : kCodes) {
     if (code == text) {
       *out = dtype;
@@ -78,7 +79,7 @@ void check_seal(const std::uint8_t* bytes, std::size_t size, std::size_t header_
                 const std::string& recorded, const std::string& name) {
   const std::string where = std::string("__metadata__['") + kSafetensorsSealKey + "']";
   if (!is_hex_digest(recorded)) {
-    fail(name, where + " is " + detail::describe(Json(recorded)) +
+    fail(name, where + " is " + core::describe(Json(recorded)) +
                    "; expected 64 lower-case hexadecimal digits");
   }
   const std::size_t at = seal_digits_at(bytes, header_end, recorded);
@@ -86,12 +87,12 @@ void check_seal(const std::uint8_t* bytes, std::size_t size, std::size_t header_
     fail(name, where + " is not written as \"" + kSafetensorsSealKey +
                    "\":\"<digits>\" exactly once in the header; the seal cannot be checked");
   }
-  Sha256 hash;
+  core::Sha256 hash;
   hash.update(bytes, at);
   const std::string zeros(64, '0');
   hash.update(reinterpret_cast<const std::uint8_t*>(zeros.data()), zeros.size());
   hash.update(bytes + at + 64, size - at - 64);
-  const std::string actual = sha256_hex(hash.finish());
+  const std::string actual = core::sha256_hex(hash.finish());
   if (actual != recorded) {
     fail(name, "sha256 is " + actual + "; its seal records " + recorded +
                    " (the file changed after it was written)");
@@ -100,7 +101,7 @@ void check_seal(const std::uint8_t* bytes, std::size_t size, std::size_t header_
 
 }  // namespace
 
-const NpyArray* Safetensors::find(const std::string& name) const {
+const core::NpyArray* Safetensors::find(const std::string& name) const {
   for (const auto& [key, array] : tensors) {
     if (key == name)
       return &array;
@@ -126,7 +127,7 @@ std::vector<std::uint8_t> serialize_safetensors(const Safetensors& file, bool se
                                   "' is empty, reserved or repeated");
     }
     std::uint64_t bytes = 0;
-    if (!checked_byte_count(array.dtype, array.shape, &bytes) || bytes != array.data.size()) {
+    if (!core::checked_byte_count(array.dtype, array.shape, &bytes) || bytes != array.data.size()) {
       throw std::invalid_argument("serialize_safetensors: tensor '" + name + "' has " +
                                   std::to_string(array.data.size()) +
                                   " data bytes, which do not match its shape");
@@ -151,7 +152,7 @@ std::vector<std::uint8_t> serialize_safetensors(const Safetensors& file, bool se
     const std::size_t at = seal_digits_at(out.data(), 8 + text.size(), std::string(64, '0'));
     if (at == std::string::npos)
       throw std::logic_error("serialize_safetensors: the seal is not in the header as written");
-    const std::string hex = sha256_hex(out.data(), out.size());
+    const std::string hex = core::sha256_hex(out.data(), out.size());
     std::copy(hex.begin(), hex.end(), out.begin() + static_cast<std::ptrdiff_t>(at));
   }
   return out;
@@ -180,7 +181,7 @@ Safetensors parse_safetensors(const std::uint8_t* bytes, std::size_t size,
   const std::uint64_t data_size = size - 8 - header_length;
 
   Json header;
-  const std::string problem = detail::parse_json(
+  const std::string problem = core::parse_json(
       std::string(reinterpret_cast<const char*>(bytes) + 8, header_length), &header);
   if (!problem.empty())
     fail(name, "the header " + problem);
@@ -191,7 +192,7 @@ Safetensors parse_safetensors(const std::uint8_t* bytes, std::size_t size,
   // entries, checked, then sorted by offset to prove they tile the data exactly
   struct Entry {
     std::string key;
-    NpyArray array;
+    core::NpyArray array;
     std::uint64_t begin, end;
   };
   std::vector<Entry> entries;
@@ -215,33 +216,34 @@ Safetensors parse_safetensors(const std::uint8_t* bytes, std::size_t size,
     const Json& dtype = value["dtype"];
     if (!dtype.is_string() || !parse_dtype(dtype.get<std::string>(), &e.array.dtype)) {
       fail(name,
-           where + " has dtype " + detail::describe(dtype) + "; expected U8, I32, I64, F32 or F64");
+           where + " has dtype " + core::describe(dtype) + "; expected U8, I32, I64, F32 or F64");
     }
     const Json& shape = value["shape"];
-    if (!shape.is_array() || shape.size() > static_cast<std::size_t>(kNpyMaxRank)) {
-      fail(name, where + " has shape " + detail::describe_sizes(shape) +
-                     "; expected a list of at most " + std::to_string(kNpyMaxRank) + " sizes");
+    if (!shape.is_array() || shape.size() > static_cast<std::size_t>(core::kNpyMaxRank)) {
+      fail(name, where + " has shape " + core::describe_sizes(shape) +
+                     "; expected a list of at most " + std::to_string(core::kNpyMaxRank) +
+                     " sizes");
     }
     for (const Json& d : shape) {
       if (!d.is_number_unsigned())
-        fail(name, where + " has shape " + detail::describe_sizes(shape));
+        fail(name, where + " has shape " + core::describe_sizes(shape));
       e.array.shape.push_back(
           static_cast<std::int64_t>(std::min<std::uint64_t>(d.get<std::uint64_t>(), INT64_MAX)));
     }
     const Json& offsets = value["data_offsets"];
     if (!offsets.is_array() || offsets.size() != 2 || !offsets[0].is_number_unsigned() ||
         !offsets[1].is_number_unsigned()) {
-      fail(name, where + " has data_offsets " + detail::describe_sizes(offsets) +
+      fail(name, where + " has data_offsets " + core::describe_sizes(offsets) +
                      "; expected [begin, end]");
     }
     e.begin = offsets[0].get<std::uint64_t>();
     e.end = offsets[1].get<std::uint64_t>();
     std::uint64_t nbytes = 0;
-    if (!checked_byte_count(e.array.dtype, e.array.shape, &nbytes) || e.end < e.begin ||
+    if (!core::checked_byte_count(e.array.dtype, e.array.shape, &nbytes) || e.end < e.begin ||
         e.end - e.begin != nbytes) {
-      fail(name, where + " has data_offsets " + detail::describe_sizes(offsets) + " for a " +
-                     dtype_code(e.array.dtype) + " " + detail::describe_sizes(shape) +
-                     " tensor of " + std::to_string(nbytes) + " bytes");
+      fail(name, where + " has data_offsets " + core::describe_sizes(offsets) + " for a " +
+                     dtype_code(e.array.dtype) + " " + core::describe_sizes(shape) + " tensor of " +
+                     std::to_string(nbytes) + " bytes");
     }
     entries.push_back(std::move(e));
   }
@@ -282,7 +284,7 @@ Safetensors read_safetensors(const std::filesystem::path& path) {
 
 void write_safetensors(const std::filesystem::path& path, const Safetensors& file, bool sealed) {
   const std::vector<std::uint8_t> bytes = serialize_safetensors(file, sealed);
-  write_file_atomically(path, bytes.data(), bytes.size());
+  core::write_file_atomically(path, bytes.data(), bytes.size());
 }
 
 }  // namespace ropes::nn

@@ -4,11 +4,11 @@
 // handles from the buffer pool, build no autodiff node and no list of inputs, and run their
 // matrix products on per-thread workspaces. Its own executable: allocation_counter.hpp
 // interposes malloc for the whole process.
+#include <ropes_core/philox.hpp>
 #include <ropes_nn/allocation_counter.hpp>
 #include <ropes_nn/layers.hpp>
 #include <ropes_nn/ops.hpp>
 #include <ropes_nn/parallel.hpp>
-#include <ropes_nn/philox.hpp>
 
 #include <gtest/gtest.h>
 
@@ -49,7 +49,7 @@ class Net {
 };
 
 Tensor image() {
-  PhiloxStream rng(3, 0);
+  core::PhiloxStream rng(3, 0);
   Buffer pixels(64 * 64);
   for (float& v : pixels)
     v = rng.uniform_float();

@@ -1,4 +1,4 @@
-// BatchLoader and DatasetReader::read_rows_at: gathered rows, seeded epochs independent of
+// BatchLoader and core::DatasetReader::read_rows_at: gathered rows, seeded epochs independent of
 // the thread count and of reading ahead, regime filtering, resuming at a cursor, and
 // refusals that name the column, row or value.
 #include "ropes_nn/batch_loader.hpp"
@@ -13,24 +13,22 @@
 #include <string>
 #include <vector>
 
-#include "npy_arrays.hpp"
+#include "ropes_core/npy.hpp"
 #include "ropes_nn/parallel.hpp"
 
 namespace ropes::nn {
 namespace {
 
 namespace fs = std::filesystem;
-using test::make_array;
-using test::values;
 
 #define EXPECT_CONTAINS(text, part) \
   EXPECT_NE(std::string(text).find(part), std::string::npos) << "in: " << (text)
 
-const std::vector<ColumnSpec> kColumns = {
-    {"images", DType::kU8, {2, 3, 3}},  // [rows, cams, H, W]
-    {"angles", DType::kF32, {2}},
-    {"regime", DType::kI32, {}},
-    {"anchor", DType::kI64, {}},
+const std::vector<core::ColumnSpec> kColumns = {
+    {"images", core::DType::kU8, {2, 3, 3}},  // [rows, cams, H, W]
+    {"angles", core::DType::kF32, {2}},
+    {"regime", core::DType::kI32, {}},
+    {"anchor", core::DType::kI64, {}},
 };
 constexpr std::int64_t kRows = 103;  // shards of 40, 40, 23 rows
 
@@ -59,13 +57,14 @@ class BatchLoaderTest : public ::testing::Test {
         regime.push_back(static_cast<std::int32_t>(r % 5));
         anchor.push_back(r / 5);
       }
-      write_dataset_shard(
-          *dir_, s, kColumns,
-          {make_array(DType::kU8, {n, 2, 3, 3}, images), make_array(DType::kF32, {n, 2}, angles),
-           make_array(DType::kI32, {n}, regime), make_array(DType::kI64, {n}, anchor)});
+      core::write_dataset_shard(*dir_, s, kColumns,
+                                {core::make_npy_array(core::DType::kU8, {n, 2, 3, 3}, images),
+                                 core::make_npy_array(core::DType::kF32, {n, 2}, angles),
+                                 core::make_npy_array(core::DType::kI32, {n}, regime),
+                                 core::make_npy_array(core::DType::kI64, {n}, anchor)});
       first += n;
     }
-    write_dataset_manifest(*dir_, kColumns, 3, R"({"regimes": ["a", "b", "c", "d", "e"]})");
+    core::write_dataset_manifest(*dir_, kColumns, 3, R"({"regimes": ["a", "b", "c", "d", "e"]})");
   }
   static void TearDownTestSuite() {
     fs::remove_all(*dir_);
@@ -98,16 +97,16 @@ std::vector<std::vector<float>> draw(BatchLoader& loader, int count) {
 }
 
 TEST_F(BatchLoaderTest, GathersRowsByIndexAcrossShardsInTheOrderGiven) {
-  const DatasetReader reader = DatasetReader::open(*dir_);
+  const core::DatasetReader reader = core::DatasetReader::open(*dir_);
   const std::vector<std::int64_t> rows = {102, 0, 39, 40, 41, 79, 80, 7, 7, 100};
-  const NpyArray gathered = reader.read_rows_at("images", rows);
+  const core::NpyArray gathered = reader.read_rows_at("images", rows);
   EXPECT_EQ(gathered.shape, (std::vector<std::int64_t>{10, 2, 3, 3}));
   for (std::size_t i = 0; i < rows.size(); ++i) {
-    const NpyArray one = reader.read_rows("images", rows[i], 1);
+    const core::NpyArray one = reader.read_rows("images", rows[i], 1);
     EXPECT_TRUE(std::equal(one.data.begin(), one.data.end(), gathered.data.begin() + 18 * i))
         << "row " << rows[i];
   }
-  EXPECT_EQ(values<std::int64_t>(reader.read_rows_at("anchor", {99, 5})),
+  EXPECT_EQ(core::npy_values<std::int64_t>(reader.read_rows_at("anchor", {99, 5})),
             (std::vector<std::int64_t>{19, 1}));
   EXPECT_TRUE(reader.read_rows_at("anchor", {}).data.empty());
   try {
@@ -120,7 +119,7 @@ TEST_F(BatchLoaderTest, GathersRowsByIndexAcrossShardsInTheOrderGiven) {
 }
 
 TEST_F(BatchLoaderTest, SameSeedGivesTheSameBatchesForAnyThreadCountWithOrWithoutPrefetch) {
-  const DatasetReader reader = DatasetReader::open(*dir_);
+  const core::DatasetReader reader = core::DatasetReader::open(*dir_);
   const int saved = num_threads();
   set_num_threads(1);
   BatchLoader plain(reader, options_for(5, false));
@@ -135,7 +134,7 @@ TEST_F(BatchLoaderTest, SameSeedGivesTheSameBatchesForAnyThreadCountWithOrWithou
 }
 
 TEST_F(BatchLoaderTest, EachEpochIsASeededPermutationOfTheRows) {
-  const DatasetReader reader = DatasetReader::open(*dir_);
+  const core::DatasetReader reader = core::DatasetReader::open(*dir_);
   BatchLoader loader(reader, options_for(3, true));
   EXPECT_EQ(loader.batches_per_epoch(), 7);  // 6 of 16 and one of 7
   std::vector<std::vector<std::int64_t>> epochs(2);
@@ -148,9 +147,9 @@ TEST_F(BatchLoaderTest, EachEpochIsASeededPermutationOfTheRows) {
       epochs[static_cast<std::size_t>(e)].insert(epochs[static_cast<std::size_t>(e)].end(),
                                                  b.rows.begin(), b.rows.end());
     }
-    // the order is shuffled_indices' permutation of the rows
+    // the order is core::shuffled_indices' permutation of the rows
     EXPECT_EQ(epochs[static_cast<std::size_t>(e)],
-              shuffled_indices(kRows, 3, static_cast<std::uint64_t>(e)));
+              core::shuffled_indices(kRows, 3, static_cast<std::uint64_t>(e)));
     std::vector<std::int64_t> sorted = epochs[static_cast<std::size_t>(e)];
     std::sort(sorted.begin(), sorted.end());
     for (std::int64_t r = 0; r < kRows; ++r)
@@ -167,7 +166,7 @@ TEST_F(BatchLoaderTest, EachEpochIsASeededPermutationOfTheRows) {
 }
 
 TEST_F(BatchLoaderTest, ImagesBecomeFloatsInUnitRangeAndRawColumnsStayAsStored) {
-  const DatasetReader reader = DatasetReader::open(*dir_);
+  const core::DatasetReader reader = core::DatasetReader::open(*dir_);
   BatchLoader loader(reader, options_for(1, true));
   const Batch b = loader.next();
   const Tensor& images = b.tensor("images");
@@ -178,14 +177,15 @@ TEST_F(BatchLoaderTest, ImagesBecomeFloatsInUnitRangeAndRawColumnsStayAsStored) 
     for (int k = 0; k < 18; ++k)
       ASSERT_EQ(images.data()[i * 18 + k], static_cast<float>(pixel(row, k)) / 255.0f);
     EXPECT_EQ(b.tensor("angles").data()[2 * i], static_cast<float>(row));
-    EXPECT_EQ(values<std::int32_t>(b.array("regime"))[static_cast<std::size_t>(i)], row % 5);
+    EXPECT_EQ(core::npy_values<std::int32_t>(b.array("regime"))[static_cast<std::size_t>(i)],
+              row % 5);
   }
   EXPECT_THROW(b.tensor("regime"), std::out_of_range);
   EXPECT_THROW(b.array("images"), std::out_of_range);
 }
 
 TEST_F(BatchLoaderTest, FiltersRowsByAColumnAndByAList) {
-  const DatasetReader reader = DatasetReader::open(*dir_);
+  const core::DatasetReader reader = core::DatasetReader::open(*dir_);
   BatchLoaderOptions o = options_for(2, true);
   o.filter_column = "regime";
   o.filter_values = {2};
@@ -198,7 +198,7 @@ TEST_F(BatchLoaderTest, FiltersRowsByAColumnAndByAList) {
       EXPECT_EQ(r % 5, 2);
       seen.insert(r);
     }
-    for (std::int32_t regime : values<std::int32_t>(b.array("regime")))
+    for (std::int32_t regime : core::npy_values<std::int32_t>(b.array("regime")))
       EXPECT_EQ(regime, 2);
   }
   EXPECT_EQ(seen.size(), 21u);
@@ -210,7 +210,7 @@ TEST_F(BatchLoaderTest, FiltersRowsByAColumnAndByAList) {
 }
 
 TEST_F(BatchLoaderTest, SeekToASavedCursorContinuesTheSameSequence) {
-  const DatasetReader reader = DatasetReader::open(*dir_);
+  const core::DatasetReader reader = core::DatasetReader::open(*dir_);
   BatchLoader first(reader, options_for(9, true));
   draw(first, 3);
   const DataCursor saved = first.cursor();
@@ -225,7 +225,7 @@ TEST_F(BatchLoaderTest, SeekToASavedCursorContinuesTheSameSequence) {
 }
 
 TEST_F(BatchLoaderTest, DropLastGivesOnlyFullBatches) {
-  const DatasetReader reader = DatasetReader::open(*dir_);
+  const core::DatasetReader reader = core::DatasetReader::open(*dir_);
   BatchLoaderOptions o = options_for(4, true);
   o.drop_last = true;
   BatchLoader loader(reader, o);
@@ -237,7 +237,7 @@ TEST_F(BatchLoaderTest, DropLastGivesOnlyFullBatches) {
 }
 
 TEST_F(BatchLoaderTest, RefusesColumnsRowsAndFiltersThatDoNotFit) {
-  const DatasetReader reader = DatasetReader::open(*dir_);
+  const core::DatasetReader reader = core::DatasetReader::open(*dir_);
   auto error = [&](BatchLoaderOptions o) {
     try {
       BatchLoader loader(reader, std::move(o));
@@ -300,11 +300,12 @@ TEST(SplitRows, NearEqualContiguousParts) {
 TEST(BatchLoader, ReadErrorsSurfaceInNextNamingTheFile) {
   const fs::path dir =
       fs::temp_directory_path() / ("ropes_loader_cut_" + std::to_string(::getpid()));
-  const std::vector<ColumnSpec> columns = {{"x", DType::kF32, {4}}};
-  write_dataset_shard(dir, 0, columns,
-                      {make_array(DType::kF32, {8, 4}, std::vector<float>(32, 1))});
-  write_dataset_manifest(dir, columns, 1, "{}");
-  const DatasetReader reader = DatasetReader::open(dir);
+  const std::vector<core::ColumnSpec> columns = {{"x", core::DType::kF32, {4}}};
+  core::write_dataset_shard(
+      dir, 0, columns,
+      {core::make_npy_array(core::DType::kF32, {8, 4}, std::vector<float>(32, 1))});
+  core::write_dataset_manifest(dir, columns, 1, "{}");
+  const core::DatasetReader reader = core::DatasetReader::open(dir);
   fs::resize_file(dir / "shards" / "x-00000.npy", 100);
   for (bool prefetch : {false, true}) {
     BatchLoaderOptions o;
@@ -315,7 +316,7 @@ TEST(BatchLoader, ReadErrorsSurfaceInNextNamingTheFile) {
     try {
       loader.next();
       ADD_FAILURE() << "read a truncated file";
-    } catch (const FileFormatError& e) {
+    } catch (const core::FileFormatError& e) {
       EXPECT_CONTAINS(e.what(), "x-00000.npy");
     }
   }

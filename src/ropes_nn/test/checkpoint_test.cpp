@@ -3,6 +3,8 @@
 // a truncated file or a foreign one is refused by name and changes nothing.
 #include "ropes_nn/checkpoint.hpp"
 
+#include "ropes_core/file_io.hpp"
+
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
@@ -16,9 +18,9 @@
 #include <string>
 #include <vector>
 
+#include "ropes_core/philox.hpp"
 #include "ropes_nn/layers.hpp"
 #include "ropes_nn/ops.hpp"
-#include "ropes_nn/philox.hpp"
 #include "ropes_nn/safetensors.hpp"
 #include "ropes_nn/train_step.hpp"
 
@@ -54,7 +56,7 @@ std::shared_ptr<Sequential> small_net(int width = 4) {
 void train(Sequential& net, Adam& adam, const LrSchedule& schedule, std::int64_t from,
            std::int64_t to) {
   for (std::int64_t step = from; step < to; ++step) {
-    PhiloxStream rng(5, static_cast<std::uint64_t>(step));
+    core::PhiloxStream rng(5, static_cast<std::uint64_t>(step));
     std::vector<float> v(8 * 64);
     for (float& x : v)
       x = rng.uniform_float();
@@ -209,7 +211,7 @@ TEST(Checkpoint, WeightsLoadAloneForInferenceWithThePrefix) {
   try {
     load_module(other, path);
     ADD_FAILURE() << "loaded a checkpoint's weights without the prefix";
-  } catch (const FileFormatError& e) {
+  } catch (const core::FileFormatError& e) {
     EXPECT_CONTAINS(e.what(),
                     "has no tensor 'conv.weight' for parameter 'conv.weight' (the file "
                     "has 'model.conv.weight': load with the prefix \"model.\"?)");
@@ -257,7 +259,7 @@ TEST(Checkpoint, RefusesFilesThatDoNotMatchAndChangesNothing) {
   auto error_loading = [&](const fs::path& path, Sequential& module, Adam& optimizer) {
     try {
       load_checkpoint(path, module, optimizer);
-    } catch (const FileFormatError& e) {
+    } catch (const core::FileFormatError& e) {
       return std::string(e.what());
     }
     return std::string("no error");
@@ -296,7 +298,7 @@ TEST(Checkpoint, RefusesFilesThatDoNotMatchAndChangesNothing) {
   const fs::path cut = scratch("cut.safetensors");
   for (std::size_t n :
        {std::size_t{0}, std::size_t{7}, std::size_t{100}, bytes.size() / 2, bytes.size() - 1}) {
-    write_file_atomically(cut, bytes.data(), n);
+    core::write_file_atomically(cut, bytes.data(), n);
     EXPECT_CONTAINS(error_loading(cut, *target, target_adam), cut.string() + ": ");
   }
   // a weights file is not a checkpoint
@@ -345,7 +347,7 @@ TEST(Checkpoint, RefusesFilesThatDoNotMatchAndChangesNothing) {
   {
     std::vector<std::uint8_t> damaged = bytes_of(good);
     damaged[damaged.size() - 40] ^= 0x10;
-    write_file_atomically(unsealed, damaged.data(), damaged.size());
+    core::write_file_atomically(unsealed, damaged.data(), damaged.size());
     EXPECT_CONTAINS(error_loading(unsealed, *target, target_adam), "; its seal records ");
   }
   EXPECT_CONTAINS(with_state(replaced("\"format_version\":2", "\"format_version\":3")),
@@ -361,8 +363,8 @@ TEST(Checkpoint, RefusesFilesThatDoNotMatchAndChangesNothing) {
                   "metadata[\"ropes.checkpoint\"].seed is -1; expected an integer >= 0");
   // tensors that belong to no part of the state
   Safetensors foreign = file;
-  NpyArray extra;
-  extra.dtype = DType::kF32;
+  core::NpyArray extra;
+  extra.dtype = core::DType::kF32;
   extra.data.resize(4);
   foreign.tensors.emplace_back("ema.conv.weight", extra);
   const fs::path foreign_path = scratch("foreign.safetensors");
@@ -387,7 +389,7 @@ TEST(Checkpoint, RefusesFilesThatDoNotMatchAndChangesNothing) {
   try {
     load_module(*wider, good, {"model.", false});
     ADD_FAILURE() << "a mis-shaped tensor loaded";
-  } catch (const FileFormatError& e) {
+  } catch (const core::FileFormatError& e) {
     EXPECT_CONTAINS(e.what(), "tensor 'model.conv.weight' is f32 [4, 1, 3, 3]");
   }
 
@@ -418,10 +420,10 @@ TEST(Checkpoint, SavingIsAtomicAndLeavesNoTemporaries) {
   EXPECT_FALSE(fs::exists(stale));
   for (const auto& entry : fs::directory_iterator(path.parent_path()))
     EXPECT_EQ(entry.path().string().find(".tmp."), std::string::npos) << entry.path();
-  // a directory that cannot be written: FileFormatError naming the file
+  // a directory that cannot be written: core::FileFormatError naming the file
   EXPECT_THROW(
       save_checkpoint("/proc/ropes/none.safetensors", *net, adam, LrSchedule::constant(1e-3), {}),
-      FileFormatError);
+      core::FileFormatError);
   fs::remove_all(path.parent_path());
 }
 

@@ -8,8 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "ropes_core/philox.hpp"
 #include "ropes_nn/parallel.hpp"
-#include "ropes_nn/philox.hpp"
 
 namespace ropes::nn {
 namespace {
@@ -18,7 +18,7 @@ namespace {
 constexpr CacheSizes kOtherCpu{32768, 262144, 8388608};
 
 std::vector<float> normals(std::size_t n, std::uint64_t seed) {
-  PhiloxStream rng(seed, 0);
+  core::PhiloxStream rng(seed, 0);
   std::vector<float> v(n);
   for (float& x : v)
     x = static_cast<float>(rng.normal());

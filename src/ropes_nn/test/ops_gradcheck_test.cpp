@@ -5,17 +5,17 @@
 
 #include <cmath>
 
+#include "ropes_core/philox.hpp"
 #include "ropes_nn/gradcheck.hpp"
 #include "ropes_nn/layers.hpp"
 #include "ropes_nn/ops.hpp"
-#include "ropes_nn/philox.hpp"
 
 namespace ropes::nn {
 namespace {
 
 // values in +-[0.2, 1.2]: away from the kinks of relu and abs at 0
 Tensor random_tensor(const Shape& shape, std::uint64_t stream) {
-  PhiloxStream rng(77, stream);
+  core::PhiloxStream rng(77, stream);
   std::vector<float> v(static_cast<std::size_t>(shape.numel()));
   for (float& x : v) {
     const float magnitude = 0.2f + rng.uniform_float();

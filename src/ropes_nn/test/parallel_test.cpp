@@ -10,9 +10,9 @@
 #include <thread>
 #include <vector>
 
+#include "ropes_core/philox.hpp"
 #include "ropes_nn/layers.hpp"
 #include "ropes_nn/ops.hpp"
-#include "ropes_nn/philox.hpp"
 
 namespace ropes::nn {
 namespace {
@@ -29,7 +29,7 @@ std::vector<float> loss_and_gradients_at_current_threads() {
   head.add(std::make_shared<Dense>(2 * 16 * 16, 96));
   head.add(std::make_shared<Dense>(96, 3));
   head.initialize(13);
-  PhiloxStream rng(12, 0);
+  core::PhiloxStream rng(12, 0);
   std::vector<float> pixels(20 * 2 * 16 * 16);
   for (float& v : pixels)
     v = static_cast<float>(rng.normal());
@@ -81,7 +81,7 @@ TEST(Parallel, ConvolutionForwardIsBitIdenticalAcrossThreadsAndBatches) {
                         {8, 80, 20, 3, 1},  {24, 47, 18, 3, 1}, {64, 96, 16, 3, 1}};
   const int saved = num_threads();
   for (const Case& k : cases) {
-    PhiloxStream rng(static_cast<std::uint64_t>(k.o), 0);
+    core::PhiloxStream rng(static_cast<std::uint64_t>(k.o), 0);
     std::vector<float> xs(static_cast<std::size_t>(3 * k.c * k.size * k.size));
     std::vector<float> ws(static_cast<std::size_t>(k.o * k.c * k.kernel * k.kernel));
     for (float& v : xs)

@@ -11,9 +11,9 @@
 #include <iterator>
 #include <sstream>
 
+#include "ropes_core/philox.hpp"
 #include "ropes_nn/checkpoint.hpp"
 #include "ropes_nn/layers.hpp"
-#include "ropes_nn/philox.hpp"
 
 namespace ropes::nn {
 namespace {
@@ -104,7 +104,7 @@ TEST(SafetensorsGolden, APythonReaderOfThePublishedFormatReadsWhatWeWrite) {
   EXPECT_EQ(printed, expected.str());
 
   // the values themselves: the reader saves each tensor with numpy.save (through
-  // torch.from_numpy when python3-torch is there) and read_npy compares every bit
+  // torch.from_numpy when python3-torch is there) and core::read_npy compares every bit
   const fs::path exported = scratch("exported");
   fs::create_directories(exported);
   const std::string export_command = "/usr/bin/python3 " + std::string(ROPES_NN_TOOLS) +
@@ -112,8 +112,8 @@ TEST(SafetensorsGolden, APythonReaderOfThePublishedFormatReadsWhatWeWrite) {
                                      exported.string() + "' > /dev/null";
   ASSERT_EQ(std::system(export_command.c_str()), 0) << export_command;
   for (const auto& [name, t] : params) {
-    const NpyArray a = read_npy(exported / (name + ".npy"));
-    EXPECT_EQ(a.dtype, DType::kF32) << name;
+    const core::NpyArray a = core::read_npy(exported / (name + ".npy"));
+    EXPECT_EQ(a.dtype, core::DType::kF32) << name;
     EXPECT_EQ(a.shape, t.shape().dims()) << name;
     ASSERT_EQ(a.data.size(), static_cast<std::size_t>(t.numel()) * 4) << name;
     EXPECT_EQ(std::memcmp(a.data.data(), t.data(), a.data.size()), 0) << name;
@@ -124,7 +124,7 @@ TEST(SafetensorsGolden, APythonReaderOfThePublishedFormatReadsWhatWeWrite) {
 std::string parse_error(const std::vector<std::uint8_t>& bytes) {
   try {
     parse_safetensors(bytes.data(), bytes.size(), "m.safetensors");
-  } catch (const FileFormatError& e) {
+  } catch (const core::FileFormatError& e) {
     return e.what();
   }
   return "";
@@ -189,7 +189,7 @@ TEST(Safetensors, LoadModuleRefusesAMismatchAndChangesNothing) {
   try {
     load_module(other, path);
     ADD_FAILURE() << "loaded a mismatched file";
-  } catch (const FileFormatError& e) {
+  } catch (const core::FileFormatError& e) {
     EXPECT_NE(std::string(e.what()).find("tensor '0.weight' is f32 [4, 1, 3, 3]; parameter "
                                          "'0.weight' is f32 [5, 1, 3, 3]"),
               std::string::npos)
@@ -199,16 +199,16 @@ TEST(Safetensors, LoadModuleRefusesAMismatchAndChangesNothing) {
   fs::remove_all(path.parent_path());
 }
 
-// Fuzz: truncations and random corruptions parse or give FileFormatError, nothing else.
+// Fuzz: truncations and random corruptions parse or give core::FileFormatError, nothing else.
 TEST(Safetensors, TruncatedAndCorruptedFilesGiveFileFormatErrorsOnly) {
   const auto net = small_net(5);
   const fs::path path = scratch("f.safetensors");
   save_module(*net, path, {{"k", "v"}});
   const std::vector<std::uint8_t> good = file_bytes(path);
   for (std::size_t n = 0; n < good.size(); n += 7) {
-    EXPECT_THROW(parse_safetensors(good.data(), n, "cut"), FileFormatError) << n;
+    EXPECT_THROW(parse_safetensors(good.data(), n, "cut"), core::FileFormatError) << n;
   }
-  PhiloxStream rng(7, 0);
+  core::PhiloxStream rng(7, 0);
   int refused = 0;
   const std::size_t header_end = 8 + (good[0] | (good[1] << 8) | (good[2] << 16));
   for (int trial = 0; trial < 3000; ++trial) {
@@ -218,7 +218,7 @@ TEST(Safetensors, TruncatedAndCorruptedFilesGiveFileFormatErrorsOnly) {
     bad[rng.next_u32() % span] = static_cast<std::uint8_t>(rng.next_u32());
     try {
       parse_safetensors(bad.data(), bad.size(), "bad");
-    } catch (const FileFormatError&) {
+    } catch (const core::FileFormatError&) {
       ++refused;
     }
   }
@@ -267,7 +267,7 @@ TEST(Safetensors, ASealedFileIsRefusedWhenAnyByteChanged) {
       EXPECT_FALSE(is_sealed(read));
       for (std::size_t t = 0; t < read.tensors.size(); ++t)
         EXPECT_EQ(read.tensors[t].second.data, parsed.tensors[t].second.data);
-    } catch (const FileFormatError& e) {
+    } catch (const core::FileFormatError& e) {
       ++refused;
       by_seal += std::string(e.what()).find("(the file changed after it was written)") !=
                  std::string::npos;

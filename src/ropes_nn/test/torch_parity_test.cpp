@@ -24,7 +24,7 @@ const Safetensors& fixture() {
 
 // a fixture tensor as a leaf (requires_grad when asked)
 Tensor T(const std::string& name, bool requires_grad = false) {
-  const NpyArray* a = fixture().find(name);
+  const core::NpyArray* a = fixture().find(name);
   if (!a)
     throw std::runtime_error("fixture has no tensor " + name);
   std::vector<float> values(a->data.size() / sizeof(float));

@@ -13,10 +13,10 @@
 #include <string>
 #include <vector>
 
+#include "ropes_core/philox.hpp"
 #include "ropes_nn/layers.hpp"
 #include "ropes_nn/ops.hpp"
 #include "ropes_nn/parallel.hpp"
-#include "ropes_nn/philox.hpp"
 
 namespace ropes::nn {
 namespace {
@@ -25,7 +25,7 @@ namespace {
   EXPECT_NE(std::string(text).find(part), std::string::npos) << "in: " << (text)
 
 Tensor normal_tensor(const Shape& shape, std::uint64_t seed) {
-  PhiloxStream rng(seed, 0);
+  core::PhiloxStream rng(seed, 0);
   std::vector<float> v(static_cast<std::size_t>(shape.numel()));
   for (float& x : v)
     x = static_cast<float>(rng.normal());

@@ -8,7 +8,7 @@
 int main() {
   const ropes::sim::TruncatedNormal joint2(/*mu=*/0.0, /*sigma=*/1.0, /*lower=*/-1.5,
                                            /*upper=*/1.5);
-  ropes::nn::PhiloxStream rng(/*seed=*/1, /*stream=*/0);
+  ropes::core::PhiloxStream rng(/*seed=*/1, /*stream=*/0);
   const int n = 100000;
   double sum = 0.0, sum_sq = 0.0;
   for (int i = 0; i < n; ++i) {

@@ -1,7 +1,7 @@
 // dataset_config_fuzz: a dataset config and its sampling distribution from arbitrary JSON,
 // checked as ropes-generate checks them: DatasetConfig::load, InterventionSampler::load of
 // the distribution, and one anchor drawn from it. The input's sections
-// (ropes_nn/fuzz_input.hpp): "" is configs/config.json, "distribution" is
+// (ropes_core/fuzz_input.hpp): "" is configs/config.json, "distribution" is
 // distributions/distribution.json; urdf/panda.urdf is the workspace's own Panda. Each either
 // loads or is refused with a ConfigError naming the file, the field and the value.
 #include <cstddef>
@@ -13,13 +13,13 @@
 #include <map>
 #include <string>
 
-#include "ropes_nn/fuzz_input.hpp"
+#include "ropes_core/fuzz_input.hpp"
 #include "ropes_sim/dataset_config.hpp"
 #include "ropes_sim/intervention_sampler.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using namespace ropes;
-  static const nn::fuzz::ScratchDir scratch;
+  static const core::fuzz::ScratchDir scratch;
   static const std::string panda = [] {
     std::ifstream in(std::string(ROPES_SIM_URDF_DIR) + "/panda.urdf", std::ios::binary);
     if (!in)
@@ -30,7 +30,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       {"", "configs/config.json"}, {"distribution", "distributions/distribution.json"}};
   scratch.clear();
   scratch.write("urdf/panda.urdf", panda);
-  for (const nn::fuzz::Section& section : nn::fuzz::split_sections(data, size)) {
+  for (const core::fuzz::Section& section : core::fuzz::split_sections(data, size)) {
     const auto it = files.find(section.name);
     if (it != files.end())
       scratch.write(it->second, section.bytes);

@@ -1,5 +1,5 @@
 // mesh_fuzz: load_mesh on arbitrary OBJ (with its material library) and STL files. The
-// input's sections (ropes_nn/fuzz_input.hpp): "" is mesh.obj, "mtl" is mesh.mtl (what the
+// input's sections (ropes_core/fuzz_input.hpp): "" is mesh.obj, "mtl" is mesh.mtl (what the
 // corpus OBJ names in mtllib), "stl" is mesh.stl (binary or ASCII). Each loads, giving
 // whole triangles whose indices stay inside the vertices, or is refused with a MeshError.
 #include <cstddef>
@@ -8,7 +8,7 @@
 #include <map>
 #include <string>
 
-#include "ropes_nn/fuzz_input.hpp"
+#include "ropes_core/fuzz_input.hpp"
 #include "ropes_sim/mesh.hpp"
 
 namespace {
@@ -32,12 +32,12 @@ void check(const ropes::sim::Mesh& mesh) {
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using namespace ropes;
-  static const nn::fuzz::ScratchDir scratch;
+  static const core::fuzz::ScratchDir scratch;
   static const std::map<std::string, std::string> files = {
       {"", "mesh.obj"}, {"mtl", "mesh.mtl"}, {"stl", "mesh.stl"}};
   scratch.clear();
   bool stl = false;
-  for (const nn::fuzz::Section& section : nn::fuzz::split_sections(data, size)) {
+  for (const core::fuzz::Section& section : core::fuzz::split_sections(data, size)) {
     const auto it = files.find(section.name);
     if (it != files.end())
       scratch.write(it->second, section.bytes);

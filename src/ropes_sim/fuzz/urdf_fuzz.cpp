@@ -1,6 +1,6 @@
 // urdf_fuzz: a robot from arbitrary URDF text and mesh files, loaded as ropes-generate
 // loads one: RobotModel::load, Kinematics (Simbody) at the zero pose and the scene with its
-// meshes. The input's sections (ropes_nn/fuzz_input.hpp): "" is robot/robot.urdf; "obj",
+// meshes. The input's sections (ropes_core/fuzz_input.hpp): "" is robot/robot.urdf; "obj",
 // "mtl" and "stl" are robot/meshes/link.obj, link.mtl and link.stl. Each step works or is
 // refused with a ModelError or MeshError naming the file.
 #include <cstddef>
@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "ropes_nn/fuzz_input.hpp"
+#include "ropes_core/fuzz_input.hpp"
 #include "ropes_sim/kinematics.hpp"
 #include "ropes_sim/mesh.hpp"
 #include "ropes_sim/robot_model.hpp"
@@ -18,13 +18,13 @@
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using namespace ropes;
-  static const nn::fuzz::ScratchDir scratch;
+  static const core::fuzz::ScratchDir scratch;
   static const std::map<std::string, std::string> files = {{"", "robot/robot.urdf"},
                                                            {"obj", "robot/meshes/link.obj"},
                                                            {"mtl", "robot/meshes/link.mtl"},
                                                            {"stl", "robot/meshes/link.stl"}};
   scratch.clear();
-  for (const nn::fuzz::Section& section : nn::fuzz::split_sections(data, size)) {
+  for (const core::fuzz::Section& section : core::fuzz::split_sections(data, size)) {
     const auto it = files.find(section.name);
     if (it != files.end())
       scratch.write(it->second, section.bytes);

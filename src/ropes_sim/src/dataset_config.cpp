@@ -7,6 +7,7 @@
 #include <system_error>
 
 #include "json_config.hpp"
+#include "ropes_core/plain_name.hpp"
 #include "ropes_sim/intervention_sampler.hpp"
 
 namespace ropes::sim {
@@ -120,7 +121,7 @@ DatasetConfig DatasetConfig::load(const std::filesystem::path& path) {
   DatasetConfig c;
   c.file = path;
   c.name = text(required(config, "name", file, ""), file, "name");
-  if (!nn::is_plain_name(c.name)) {
+  if (!core::is_plain_name(c.name)) {
     fail(file, "name is '" + c.name.substr(0, 64) +
                    "'; expected a plain name (letters, digits, '_', '-', '.', not starting "
                    "with '.'; at most 128 characters): tools name directories after it");

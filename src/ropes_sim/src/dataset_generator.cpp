@@ -15,9 +15,10 @@
 
 #include "dataset_setup.hpp"
 #include "json_config.hpp"
-#include "ropes_nn/dataset.hpp"
-#include "ropes_nn/npy.hpp"
-#include "ropes_nn/sha256.hpp"
+#include "ropes_core/dataset.hpp"
+#include "ropes_core/file_io.hpp"
+#include "ropes_core/npy.hpp"
+#include "ropes_core/sha256.hpp"
 #include "ropes_sim/intervention_sampler.hpp"
 #include "ropes_sim/kinematics.hpp"
 #include "ropes_sim/renderer.hpp"
@@ -134,8 +135,8 @@ class WorkerPool {
 Json read_json(const fs::path& path) {
   std::string text;
   try {
-    text = nn::read_text_file(path, nn::kMaxJsonFileBytes);
-  } catch (const nn::FileFormatError& e) {
+    text = core::read_text_file(path, core::kMaxJsonFileBytes);
+  } catch (const core::FileFormatError& e) {
     throw std::runtime_error(e.what());
   }
   try {
@@ -199,8 +200,8 @@ void refuse_old_reading(const fs::path& dir, const fs::path& file, const Json& m
 bool prepare_directory(const fs::path& dir, const std::string& metadata) {
   const Json ours = Json::parse(metadata);
   const fs::path manifest = dir / "manifest.json", generation = dir / kGenerationFile;
-  nn::remove_stale_temporaries(dir);
-  nn::remove_stale_temporaries(dir / "shards");
+  core::remove_stale_temporaries(dir);
+  core::remove_stale_temporaries(dir / "shards");
   if (fs::exists(manifest)) {
     const Json theirs = read_json(manifest);
     const Json& meta = theirs.contains("metadata") ? theirs["metadata"] : Json();
@@ -230,15 +231,15 @@ bool prepare_directory(const fs::path& dir, const std::string& metadata) {
   }
   fs::create_directories(dir);
   const std::string text = ours.dump(2) + "\n";
-  nn::write_file_atomically(generation, reinterpret_cast<const std::uint8_t*>(text.data()),
-                            text.size());
+  core::write_file_atomically(generation, reinterpret_cast<const std::uint8_t*>(text.data()),
+                              text.size());
   return false;
 }
 
 // renders the rows of anchors [first, last) into the shard's columns
 void render_anchors(const Setup& s, const DatasetConfig& config, std::uint64_t seed,
                     std::int64_t first, std::int64_t last, int thread, int threads, Worker* w,
-                    std::vector<nn::NpyArray>* data) {
+                    std::vector<core::NpyArray>* data) {
   const std::size_t image_bytes = static_cast<std::size_t>(s.width) * s.height;
   for (std::int64_t a = first + thread; a < last; a += threads) {
     const auto samples = s.sampler.sample_anchor(seed, static_cast<std::uint64_t>(a));
@@ -311,7 +312,7 @@ std::string metadata_of(const Setup& s, const DatasetConfig& config, std::uint64
                   {"robot",
                    {{"name", s.model.name()},
                     {"file", config.robot.filename().string()},
-                    {"sha256", nn::sha256_file(config.robot)}}},
+                    {"sha256", core::sha256_file(config.robot)}}},
                   {"renderer", gl},
                   {"seed", seed},
                   {"anchors", config.anchors},
@@ -365,7 +366,7 @@ GenerateResult generate_dataset(const DatasetConfig& config, const GenerateOptio
     gl = probe.renderer.gl_description();
   }
   const std::string metadata = metadata_of(s, config, options.seed, gl);
-  const std::string id = nn::sha256_hex(metadata.data(), metadata.size());
+  const std::string id = core::sha256_hex(metadata.data(), metadata.size());
   const auto columns = s.columns();
   const int shards = static_cast<int>(config.shard_count());
   GenerateResult result;
@@ -373,8 +374,8 @@ GenerateResult generate_dataset(const DatasetConfig& config, const GenerateOptio
   if (prepare_directory(options.out, metadata)) {
     // finished before: its files must still be what the manifest records
     try {
-      nn::DatasetReader::open(options.out).verify();
-    } catch (const nn::FileFormatError& e) {
+      core::DatasetReader::open(options.out).verify();
+    } catch (const core::FileFormatError& e) {
       throw std::runtime_error(std::string(e.what()) + "; remove " +
                                (options.out / "manifest.json").string() +
                                " and run again to redo the damaged shards");
@@ -389,7 +390,7 @@ GenerateResult generate_dataset(const DatasetConfig& config, const GenerateOptio
   std::vector<int> todo;
   for (int shard = options.shard_index; shard < shards; shard += options.shard_count) {
     const std::string problem =
-        nn::dataset_shard_problem(options.out, shard, columns, id, /*check_sha256=*/true);
+        core::dataset_shard_problem(options.out, shard, columns, id, /*check_sha256=*/true);
     if (problem.empty()) {
       ++result.shards_skipped;
     } else {
@@ -407,19 +408,19 @@ GenerateResult generate_dataset(const DatasetConfig& config, const GenerateOptio
       const std::int64_t first = shard * config.anchors_per_shard;
       const std::int64_t last = std::min(config.anchors, first + config.anchors_per_shard);
       const std::int64_t rows = (last - first) * s.regimes;
-      std::vector<nn::NpyArray> data(columns.size());
+      std::vector<core::NpyArray> data(columns.size());
       for (std::size_t c = 0; c < columns.size(); ++c) {
         data[c].dtype = columns[c].dtype;
         data[c].shape = {rows};
         data[c].shape.insert(data[c].shape.end(), columns[c].row_shape.begin(),
                              columns[c].row_shape.end());
         data[c].data.resize(static_cast<std::size_t>(data[c].element_count()) *
-                            nn::dtype_size(columns[c].dtype));
+                            core::dtype_size(columns[c].dtype));
       }
       pool.run([&](int t, Worker* w) {
         render_anchors(s, config, options.seed, first, last, t, pool.size(), w, &data);
       });
-      nn::write_dataset_shard(options.out, shard, columns, data, id);
+      core::write_dataset_shard(options.out, shard, columns, data, id);
       ++done;
       const std::int64_t images = rows * s.cameras;
       result.images += images;
@@ -438,9 +439,9 @@ GenerateResult generate_dataset(const DatasetConfig& config, const GenerateOptio
 
   // the manifest, once every shard (from any run) is there
   for (int shard = 0; shard < shards; ++shard)
-    if (!nn::dataset_shard_complete(options.out, shard, columns, id))
+    if (!core::dataset_shard_complete(options.out, shard, columns, id))
       return result;
-  nn::write_dataset_manifest(options.out, columns, shards, metadata, id);
+  core::write_dataset_manifest(options.out, columns, shards, metadata, id);
   result.complete = true;
   return result;
 }
@@ -475,7 +476,7 @@ void write_sheet(const Setup& s, const DatasetConfig& config, Worker* w,
   std::vector<std::uint8_t> bytes;
   if (!cv::imencode(".png", sheet, bytes))
     throw std::runtime_error(png.string() + ": OpenCV could not encode the PNG");
-  nn::write_file_atomically(png, bytes.data(), bytes.size());
+  core::write_file_atomically(png, bytes.data(), bytes.size());
 }
 
 // what a preview needs: the config loaded, one renderer, the cameras checked

@@ -4,7 +4,7 @@
 #include <string>
 #include <vector>
 
-#include "ropes_nn/dataset.hpp"
+#include "ropes_core/dataset.hpp"
 #include "ropes_sim/dataset_config.hpp"
 #include "ropes_sim/intervention_sampler.hpp"
 #include "ropes_sim/robot_model.hpp"
@@ -48,11 +48,11 @@ struct Setup {
     return out;
   }
 
-  std::vector<nn::ColumnSpec> columns() const {
-    return {{"images", nn::DType::kU8, {cameras, height, width}},
-            {"angles", nn::DType::kF32, {joints}},
-            {"regime", nn::DType::kI32, {}},
-            {"anchor", nn::DType::kI64, {}}};
+  std::vector<core::ColumnSpec> columns() const {
+    return {{"images", core::DType::kU8, {cameras, height, width}},
+            {"angles", core::DType::kF32, {joints}},
+            {"regime", core::DType::kI32, {}},
+            {"anchor", core::DType::kI64, {}}};
   }
 };
 

@@ -151,7 +151,7 @@ InterventionSampler InterventionSampler::load(const std::filesystem::path& path)
   return s;
 }
 
-void InterventionSampler::draw_observational(nn::PhiloxStream& rng, std::vector<double>* q,
+void InterventionSampler::draw_observational(core::PhiloxStream& rng, std::vector<double>* q,
                                              std::vector<double>* noise) const {
   q->assign(specs_.size(), 0.0);
   noise->assign(specs_.size(), 0.0);
@@ -192,7 +192,7 @@ void InterventionSampler::propagate(int changed, const std::vector<double>& nois
 
 std::vector<std::vector<double>> InterventionSampler::sample_anchor(std::uint64_t seed,
                                                                     std::uint64_t anchor) const {
-  nn::PhiloxStream rng(seed, anchor);
+  core::PhiloxStream rng(seed, anchor);
   std::vector<double> base, noise;
   draw_observational(rng, &base, &noise);
   std::vector<std::vector<double>> samples = {base};

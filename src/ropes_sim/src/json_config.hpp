@@ -7,7 +7,8 @@
 #include <fstream>
 #include <string>
 
-#include "ropes_nn/npy.hpp"
+#include "ropes_core/file_format_error.hpp"
+#include "ropes_core/file_io.hpp"
 #include "ropes_sim/intervention_sampler.hpp"  // ConfigError
 
 namespace ropes::sim::detail {
@@ -18,8 +19,8 @@ inline nlohmann::json read_config_object(const std::filesystem::path& path, cons
   const std::string file = path.string();
   std::string text;
   try {
-    text = nn::read_text_file(path, nn::kMaxJsonFileBytes);  // a huge file: refused by size
-  } catch (const nn::FileFormatError& e) {
+    text = core::read_text_file(path, core::kMaxJsonFileBytes);  // a huge file: refused by size
+  } catch (const core::FileFormatError& e) {
     throw ConfigError(std::string(e.what()) + " (the " + what + ")");
   }
   nlohmann::json config;

@@ -129,7 +129,7 @@ double TruncatedNormal::quantile(double u) const {
   return std::clamp(x, lower_, upper_);
 }
 
-double TruncatedNormal::sample(nn::PhiloxStream& rng) const {
+double TruncatedNormal::sample(core::PhiloxStream& rng) const {
   return quantile(rng.uniform_double());
 }
 

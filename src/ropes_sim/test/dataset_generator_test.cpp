@@ -7,7 +7,7 @@
 #include <fstream>
 #include <sstream>
 
-#include "ropes_nn/dataset.hpp"
+#include "ropes_core/dataset.hpp"
 #include "ropes_sim/intervention_sampler.hpp"
 #include "ropes_sim/kinematics.hpp"
 #include "ropes_sim/renderer.hpp"
@@ -88,7 +88,7 @@ TEST(DatasetGenerator, RowsHoldWhatTheSamplerAndRendererGive) {
   const fs::path dir = temp_dir("rows");
   const auto config = DatasetConfig::load(write_config(dir));
   generate_dataset(config, options(dir / "d", 2));
-  const auto reader = nn::DatasetReader::open(dir / "d");
+  const auto reader = core::DatasetReader::open(dir / "d");
   ASSERT_EQ(reader.rows(), 5 * 13);
   EXPECT_EQ(reader.column("images").row_shape, (std::vector<std::int64_t>{2, 32, 40}));
   const auto meta = nlohmann::json::parse(reader.metadata_json());
@@ -140,13 +140,13 @@ TEST(DatasetGenerator, ADatasetWithoutRegimeMetadataStillOpens) {
   m["metadata"].erase("regimes");
   m["metadata"]["sim_dataset_version"] = 1;
   std::ofstream(manifest) << m.dump(2) << "\n";
-  const auto reader = nn::DatasetReader::open(dir / "d");
+  const auto reader = core::DatasetReader::open(dir / "d");
   EXPECT_EQ(reader.rows(), 5 * 13);
   EXPECT_EQ(reader.metadata_at("/regime_names/5").get<std::string>(), "do(panda_joint3)=1");
   try {
     reader.metadata_at("/regimes", "sim_dataset_version 1; regenerate it with ropes-generate");
     ADD_FAILURE() << "an old dataset had regimes";
-  } catch (const nn::FileFormatError& e) {
+  } catch (const core::FileFormatError& e) {
     EXPECT_NE(std::string(e.what()).find(manifest.string() + ": metadata has no /regimes "
                                                              "(sim_dataset_version 1; "),
               std::string::npos)

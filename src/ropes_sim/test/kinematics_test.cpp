@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "panda_dh.hpp"
-#include "ropes_nn/philox.hpp"
+#include "ropes_core/philox.hpp"
 
 namespace ropes::sim {
 namespace {
@@ -21,7 +21,7 @@ const std::filesystem::path kPandaGym =
 // the witness: test/panda_dh.hpp
 using witness::dh_frames;
 
-std::vector<double> random_configuration(const RobotModel& model, nn::PhiloxStream& rng) {
+std::vector<double> random_configuration(const RobotModel& model, core::PhiloxStream& rng) {
   std::vector<double> q;
   for (int j : model.movable_joints()) {
     const Joint& joint = model.joints()[static_cast<std::size_t>(j)];
@@ -51,7 +51,7 @@ TEST(RobotModel, LoadsTheWorkspacePandaWithSevenCoordinates) {
 TEST(KinematicsGolden, SimbodyMatchesTheModifiedDhTableOn1000Configurations) {
   const RobotModel panda = RobotModel::load(kPandaUrdf);
   Kinematics fk(panda);
-  nn::PhiloxStream rng(2024, 0);
+  core::PhiloxStream rng(2024, 0);
   double worst_position = 0, worst_rotation = 0;
   for (int trial = 0; trial < 1000; ++trial) {
     const std::vector<double> q = random_configuration(panda, rng);
@@ -80,7 +80,7 @@ TEST(KinematicsGolden, PandaGymAssetHasTheSameKinematics) {
   const RobotModel gym = RobotModel::load(kPandaGym);
   ASSERT_GE(gym.movable_joints().size(), 7u);
   Kinematics fk_ours(ours), fk_gym(gym);
-  nn::PhiloxStream rng(7, 0);
+  core::PhiloxStream rng(7, 0);
   for (int trial = 0; trial < 100; ++trial) {
     const std::vector<double> q = random_configuration(ours, rng);
     std::vector<double> q_gym(gym.movable_joints().size(), 0.0);  // fingers closed

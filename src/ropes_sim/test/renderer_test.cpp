@@ -10,8 +10,8 @@
 #include <map>
 #include <thread>
 
-#include "ropes_nn/philox.hpp"
-#include "ropes_nn/sha256.hpp"
+#include "ropes_core/philox.hpp"
+#include "ropes_core/sha256.hpp"
 #include "ropes_sim/intervention_sampler.hpp"
 #include "ropes_sim/kinematics.hpp"
 
@@ -40,7 +40,7 @@ struct Fixture {
 };
 
 std::vector<std::vector<double>> random_configurations(int n, std::uint64_t seed) {
-  nn::PhiloxStream rng(seed, 0);
+  core::PhiloxStream rng(seed, 0);
   std::vector<std::vector<double>> out;
   for (int i = 0; i < n; ++i) {
     std::vector<double> q(7);
@@ -205,7 +205,7 @@ TEST(RendererGolden, PinnedImagesOfBothRigs) {
     for (const Camera& cam : c.rig.cameras) {
       const std::string name = c.name + "_" + cam.name;
       auto image = r.render(X_BL, cam);
-      const std::string hash = nn::sha256_hex(image.data(), image.size());
+      const std::string hash = core::sha256_hex(image.data(), image.size());
       manifest += name + ": " + hash + "\n";
       const fs::path png = kGoldenDir / (name + ".png");
       if (regenerate) {

@@ -75,7 +75,7 @@ TEST(TruncatedNormal, SamplesStayInsideAndHaveTheTruncatedMoments) {
   const int n = 200000;
   for (const Case& c : kCases) {
     const TruncatedNormal tn(c.mu, c.sigma, c.lower, c.upper);
-    nn::PhiloxStream rng(11, 0);
+    core::PhiloxStream rng(11, 0);
     double sum = 0, sum_sq = 0;
     for (int i = 0; i < n; ++i) {
       const double x = tn.sample(rng);
@@ -126,7 +126,7 @@ TEST(TruncatedNormal, RejectsInvalidParametersWithTheValues) {
   expect_rejected(0, 1, 37.7, 38, "no probability mass");
   // just inside the limit: finite draws inside the interval
   const TruncatedNormal far(0, 1, 36.5, 36.9);
-  nn::PhiloxStream rng(3, 0);
+  core::PhiloxStream rng(3, 0);
   for (int i = 0; i < 100; ++i) {
     const double x = far.sample(rng);
     EXPECT_TRUE(x >= 36.5 && x <= 36.9) << x;
@@ -139,7 +139,7 @@ TEST(TruncatedNormal, RejectsInvalidParametersWithTheValues) {
 // Golden: the first four draws of seed 7, stream 0, produced by this code. Witness, checked
 // when they were pinned: scipy.stats.truncnorm.ppf (scipy 1.10) on the same uniforms agreed
 // to 1e-15 (test/witness_truncated_normal.py regenerates the comparison). The uniforms
-// themselves follow from the Philox known-answer tests in ropes_nn.
+// themselves follow from the Philox known-answer tests in ropes_core.
 TEST(TruncatedNormalGolden, FirstDrawsOfSeed7MatchScipy) {
   const double uniforms[4] = {0.95459712855631274, 0.11417736176891524, 0.40696040388408328,
                               0.17179867593835429};
@@ -157,7 +157,7 @@ TEST(TruncatedNormalGolden, FirstDrawsOfSeed7MatchScipy) {
   };
   for (const Golden& g : golden) {
     const TruncatedNormal tn(g.c.mu, g.c.sigma, g.c.lower, g.c.upper);
-    nn::PhiloxStream rng(7, 0), uniform(7, 0);
+    core::PhiloxStream rng(7, 0), uniform(7, 0);
     for (int i = 0; i < 4; ++i) {
       EXPECT_EQ(uniform.uniform_double(), uniforms[i]) << "draw " << i;
       // a few ulps of slack for another libm's erfc/exp/log

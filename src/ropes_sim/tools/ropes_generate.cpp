@@ -143,13 +143,5 @@ int run(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   ropes::sim::tune_malloc_for_rendering();
-  try {
-    return run(argc, argv);
-  } catch (const UsageError& e) {
-    std::cerr << "ropes-generate: " << e.what() << "\n";
-    return 2;
-  } catch (const std::exception& e) {
-    std::cerr << "ropes-generate: error: " << e.what() << "\n";
-    return 1;
-  }
+  return ropes::core::run_main("ropes-generate", run, argc, argv);
 }

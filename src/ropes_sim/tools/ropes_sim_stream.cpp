@@ -64,9 +64,9 @@ int run(int argc, char** argv) {
     if (flag == "--config")
       config_arg = value;
     else if (flag == "--rate")
-      rate = parse_real(flag, value, 0.01, 10000);
+      rate = parse_number<double>(flag, value, 0.01, 10000);
     else if (flag == "--segment")
-      segment = parse_real(flag, value, 0.01, 3600);
+      segment = parse_number<double>(flag, value, 0.01, 3600);
     else if (flag == "--seed")
       seed = parse_number<std::uint64_t>(flag, value, 0, UINT64_MAX);
     else if (flag == "--frames")
@@ -177,13 +177,5 @@ int run(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   ropes::sim::tune_malloc_for_rendering();
-  try {
-    return run(argc, argv);
-  } catch (const UsageError& e) {
-    std::cerr << "ropes-sim-stream: " << e.what() << "\n";
-    return 2;
-  } catch (const std::exception& e) {
-    std::cerr << "ropes-sim-stream: error: " << e.what() << "\n";
-    return 1;
-  }
+  return ropes::core::run_main("ropes-sim-stream", run, argc, argv);
 }

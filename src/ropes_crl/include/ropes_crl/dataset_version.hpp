@@ -8,7 +8,7 @@
 /// so those datasets are not the paper's (for example the 2C angles have variance 0.16, not
 /// the paper's 0.35). Version 3 reads it as the paper does. ropes_crl does not link the
 /// simulator; it reads the version from the manifest's metadata.
-#include <ropes_nn/dataset.hpp>
+#include <ropes_core/dataset.hpp>
 
 #include <filesystem>
 
@@ -17,13 +17,13 @@ namespace ropes::crl {
 /// The oldest sim_dataset_version (manifest metadata) that ropes-train and ropes-eval accept.
 inline constexpr int kOldestSimDatasetVersion = 3;
 
-/// Throws nn::FileFormatError naming DIR/manifest.json, the version found and what to do
+/// Throws core::FileFormatError naming DIR/manifest.json, the version found and what to do
 /// (generate the dataset again) when the metadata holds a sim_dataset_version below
 /// kOldestSimDatasetVersion, or one that is not an integer. A dataset without the field
 /// (not made by ropes-generate: a user's own images) passes. Cost: a look-up in the metadata.
-void require_current_sim_dataset(const nn::DatasetReader& reader);
+void require_current_sim_dataset(const core::DatasetReader& reader);
 
-/// The same for the training set of the run in `run_dir`: throws nn::FileFormatError naming
+/// The same for the training set of the run in `run_dir`: throws core::FileFormatError naming
 /// RUN/run.json, the training set's manifest, the version and what to do (generate the
 /// dataset again and train the run again) when the manifest run.json's data_dir points to
 /// holds a sim_dataset_version below kOldestSimDatasetVersion. A run whose training set is

@@ -129,8 +129,10 @@ struct ExperimentConfig {
   nlohmann::json raw;  ///< the file as read (with "epochs" if given)
 };
 
-/// The installed experiment configs' directory (share/ropes_crl/configs next to the
-/// library's installed prefix, or the source tree's in a build tree).
+/// The installed experiment configs' directory, share/ropes_crl/configs, found as
+/// core::find_package_share finds it (beside the executable, a sourced install space, or
+/// where it was installed), so a moved install space finds its own. Throws
+/// std::runtime_error naming the places looked when none holds it.
 std::filesystem::path installed_config_dir();
 
 /// Reads `name_or_path`: a file path, or the name of an installed config ("1c-small").

@@ -155,7 +155,7 @@ struct RunEvaluation {
 /// joint of the run, when it holds fewer observational samples than calibration_samples +
 /// test_samples, when an option is out of range (occluded_cameras without an occlusion among
 /// them), when options.cache holds another run or test set, or when its images differ from the
-/// run's (cameras, size); nn::FileFormatError for unreadable files.
+/// run's (cameras, size); core::FileFormatError for unreadable files.
 RunEvaluation evaluate_run(const std::filesystem::path& run_dir,
                            const std::filesystem::path& data_dir,
                            const RunEvaluationOptions& options = {});
@@ -168,7 +168,7 @@ struct ProtocolSplit {
   std::vector<Eigen::Index> calibration, test;
 };
 
-/// The protocol's draws: for repeat r, the permutation nn::shuffled_indices(n, seed, r) of
+/// The protocol's draws: for repeat r, the permutation core::shuffled_indices(n, seed, r) of
 /// [0, n), its first `calibration` entries and the `test` entries after them — disjoint by
 /// construction, and checked. Throws std::invalid_argument when repeats < 1, calibration < 2,
 /// test < 2 or calibration + test > n (naming the numbers).

@@ -61,9 +61,9 @@ struct Screening {
 /// Screens the run in `run_dir`: needs its run.json, RUN/codes.npy (stage 1) and the training
 /// set at run.json's data_dir, still there (its angles and anchors); the LDR columns come from
 /// run.json when stage 2 ran. The test anchors are the first round(test_fraction * anchors) (at
-/// least 1) of nn::shuffled_indices(anchors, seed, 0); every row of an anchor goes to the same
+/// least 1) of core::shuffled_indices(anchors, seed, 0); every row of an anchor goes to the same
 /// side. Throws std::invalid_argument for options out of range (test_fraction outside (0, 1),
-/// probe_steps < 0) or a training set of fewer than 2 anchors; nn::FileFormatError naming the
+/// probe_steps < 0) or a training set of fewer than 2 anchors; core::FileFormatError naming the
 /// file for a run without codes.npy (stage 1 not done), an unreadable run.json, a training set
 /// that cannot be opened, is of a sim_dataset_version before 3 (ropes_crl's
 /// require_current_sim_dataset) or lacks the columns angles (f32 [n, joints]) and anchor (i64

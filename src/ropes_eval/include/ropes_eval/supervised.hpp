@@ -37,9 +37,9 @@ class SupervisedEncoder {
  public:
   /// Trains on `fraction` (0 < fraction <= 1) of the rows of the run's training set
   /// (RUN/codes.npy and the angles of run.json's data_dir): the first round(fraction * rows)
-  /// of nn::shuffled_indices(rows, seed, 0), at least 2, so smaller fractions are subsets of
+  /// of core::shuffled_indices(rows, seed, 0), at least 2, so smaller fractions are subsets of
   /// larger ones. Throws std::invalid_argument for a fraction outside (0, 1];
-  /// nn::FileFormatError for an unreadable run or training set, or one of fewer than 2 rows.
+  /// core::FileFormatError for an unreadable run or training set, or one of fewer than 2 rows.
   static SupervisedEncoder train(const std::filesystem::path& run_dir, double fraction,
                                  const SupervisedOptions& options = {});
   SupervisedEncoder(SupervisedEncoder&&) noexcept;

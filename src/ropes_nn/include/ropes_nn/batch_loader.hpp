@@ -1,19 +1,19 @@
 #pragma once
 /// @file batch_loader.hpp
-/// BatchLoader: seeded batches of a DatasetReader's rows as float tensors, read ahead on a
+/// BatchLoader: seeded batches of a core::DatasetReader's rows as float tensors, read ahead on a
 /// background thread.
 ///
 /// Which rows: all of the dataset's, or an explicit list (a train or held-out split), then
 /// optionally only those whose integer column `filter_column` holds one of `filter_values`
 /// (say, the rows of one regime). Call these the loader's rows, R of them.
 /// In what order: epoch e visits the loader's rows in the order
-/// shuffled_indices(R, seed, e) (or in list order with shuffle off), `batch_size` at a time;
+/// core::shuffled_indices(R, seed, e) (or in list order with shuffle off), `batch_size` at a time;
 /// the last batch of an epoch is smaller unless drop_last. The batches depend only on the
 /// dataset, the options and the cursor — not on the thread count, the prefetching or what
 /// was read before — so a run that resumes at a cursor sees the same batches.
 /// What each batch holds: for every column in `columns` a float tensor [n, row_shape...]
 /// (rank <= 4): u8 values divided by 255 (images in [0, 1]), other dtypes converted; for
-/// every column in `raw_columns` the rows as stored (an NpyArray of the column's dtype).
+/// every column in `raw_columns` the rows as stored (an core::NpyArray of the column's dtype).
 ///
 /// Not thread-safe: one thread calls next() and seek(). The loader keeps a reference to the
 /// reader: the reader must outlive the loader and stay where it is (not moved from).
@@ -24,7 +24,7 @@
 #include <string>
 #include <vector>
 
-#include "ropes_nn/dataset.hpp"
+#include "ropes_core/dataset.hpp"
 #include "ropes_nn/tensor.hpp"
 
 namespace ropes::nn {
@@ -69,13 +69,13 @@ struct Batch {
   std::int64_t index = 0;          ///< batch number within its epoch
   std::vector<std::int64_t> rows;  ///< the dataset rows it holds, in order
   std::map<std::string, Tensor> tensors;
-  std::map<std::string, NpyArray> arrays;
+  std::map<std::string, core::NpyArray> arrays;
 
   std::int64_t size() const { return static_cast<std::int64_t>(rows.size()); }
   /// The tensor of column `name`; std::out_of_range naming it when the loader did not read it
   /// as a tensor.
   const Tensor& tensor(const std::string& name) const;
-  const NpyArray& array(const std::string& name) const;
+  const core::NpyArray& array(const std::string& name) const;
   /// split_rows(size(), max_rows).
   std::vector<RowRange> micro_batches(std::int64_t max_rows) const {
     return split_rows(size(), max_rows);
@@ -91,7 +91,7 @@ class BatchLoader {
   /// column that is not an integer column of one value per row, a float column whose rows do
   /// not fit a tensor (rank > 4), or no rows left to draw from (naming the filter), or an
   /// epoch with no batch (drop_last with fewer rows than batch_size).
-  BatchLoader(const DatasetReader& reader, BatchLoaderOptions options);
+  BatchLoader(const core::DatasetReader& reader, BatchLoaderOptions options);
   ~BatchLoader();
   BatchLoader(const BatchLoader&) = delete;
   BatchLoader& operator=(const BatchLoader&) = delete;
@@ -107,7 +107,7 @@ class BatchLoader {
   /// another cursor is dropped.
   void seek(const DataCursor& cursor);
   /// The batch at the cursor; the cursor moves past it (to the next epoch after the last
-  /// batch). Errors reading the dataset (FileFormatError) surface here.
+  /// batch). Errors reading the dataset (core::FileFormatError) surface here.
   Batch next();
 
  private:

@@ -16,7 +16,7 @@
 ///             LrSchedule's JSON, "seed", "epoch", "position"}, plus the caller's free-form
 ///             entries (architecture, config...) under any other key.
 /// The weights load alone for inference: load_module(module, file, {"model."}).
-/// Files are written to a temporary name, fsync'ed and renamed (write_file_atomically): a
+/// Files are written to a temporary name, fsync'ed and renamed (core::write_file_atomically): a
 /// crash leaves the previous checkpoint or the new one, never half of one. Both kinds of
 /// file are sealed (safetensors.hpp: the metadata "ropes.sha256" holds the file's SHA-256),
 /// and reading checks the seal, so a file damaged after writing is refused, never loaded.
@@ -28,6 +28,7 @@
 #include <string>
 #include <vector>
 
+#include "ropes_core/file_io.hpp"
 #include "ropes_nn/adam.hpp"
 #include "ropes_nn/lr_schedule.hpp"
 #include "ropes_nn/module.hpp"
@@ -35,7 +36,7 @@
 namespace ropes::nn {
 
 /// Saves every parameter of `module` as F32 under "<prefix><dotted name>", with `metadata`.
-/// Sealed. Throws FileFormatError naming the file when it cannot be written,
+/// Sealed. Throws core::FileFormatError naming the file when it cannot be written,
 /// std::invalid_argument when `metadata` uses the seal's key "ropes.sha256".
 void save_module(const Module& module, const std::filesystem::path& path,
                  const std::map<std::string, std::string>& metadata = {},
@@ -59,7 +60,7 @@ struct LoadResult {
 };
 
 /// Loads the parameters of `module` from `path` and marks them initialised. Throws
-/// FileFormatError naming the file and the tensor when the file cannot be read or parsed,
+/// core::FileFormatError naming the file and the tensor when the file cannot be read or parsed,
 /// when a tensor has another shape or dtype than its parameter, and (strict) when a
 /// parameter is missing or the file holds a tensor the module lacks. Nothing is changed
 /// unless every check passes.
@@ -82,7 +83,7 @@ inline constexpr const char* kCheckpointMetadataKey = "ropes.checkpoint";
 /// Writes a training state (see the file comment). `adam`'s parameters need not be all of
 /// `module`'s (a frozen part), but they are saved by the optimiser's names. Throws
 /// std::invalid_argument when `metadata` uses the key "ropes.checkpoint" or "ropes.sha256",
-/// FileFormatError naming the file when it cannot be written. Removes temporaries of this
+/// core::FileFormatError naming the file when it cannot be written. Removes temporaries of this
 /// file left by killed processes. Cost: builds the file in memory (weights + 2 moments) before
 /// writing.
 void save_checkpoint(const std::filesystem::path& path, const Module& module, const Adam& adam,
@@ -98,7 +99,7 @@ struct LoadedCheckpoint {
 
 /// Restores a training state into `module` (its weights, strictly) and `adam` (moments, per
 /// parameter update counts, step count and hyperparameters, the rate included). Throws
-/// FileFormatError naming the file and, where one is to blame, the tensor or field: not a
+/// core::FileFormatError naming the file and, where one is to blame, the tensor or field: not a
 /// checkpoint (no "ropes.checkpoint" metadata), another format version, a truncated or
 /// corrupt file, a seal that does not match (or none in a version 2 file), a missing, extra or
 /// mis-shaped weight or optimiser tensor (a checkpoint of another architecture), a malformed

@@ -14,17 +14,17 @@
 #include <utility>
 #include <vector>
 
-#include "ropes_nn/npy.hpp"
+#include "ropes_core/npy.hpp"
 
 namespace ropes::nn {
 
 /// Named arrays in file order, and the free-form string metadata.
 struct Safetensors {
-  std::vector<std::pair<std::string, NpyArray>> tensors;
+  std::vector<std::pair<std::string, core::NpyArray>> tensors;
   std::map<std::string, std::string> metadata;
 
-  /// The array called `name`; FileFormatError-free lookup: nullptr when absent.
-  const NpyArray* find(const std::string& name) const;
+  /// The array called `name`; core::FileFormatError-free lookup: nullptr when absent.
+  const core::NpyArray* find(const std::string& name) const;
 };
 
 /// Limits against hostile files.
@@ -43,7 +43,7 @@ inline constexpr const char* kSafetensorsSealKey = "ropes.sha256";
 /// already uses kSafetensorsSealKey.
 std::vector<std::uint8_t> serialize_safetensors(const Safetensors& file, bool sealed = false);
 
-/// Parses a whole file image. `name` is used in messages. Throws FileFormatError for a
+/// Parses a whole file image. `name` is used in messages. Throws core::FileFormatError for a
 /// truncated file, a header length over kSafetensorsMaxHeaderBytes or past the end, JSON
 /// that does not parse or is not an object, an entry without dtype/shape/data_offsets, a
 /// dtype other than U8, I32, I64, F32, F64, offsets that do not match the shape, overlap,
@@ -53,7 +53,7 @@ std::vector<std::uint8_t> serialize_safetensors(const Safetensors& file, bool se
 /// metadata keeps the seal's entry. Cost: a sealed file is hashed once (about 0.5 GB/s).
 Safetensors parse_safetensors(const std::uint8_t* bytes, std::size_t size, const std::string& name);
 
-/// Reads and parses a whole file (parse_safetensors). Throws FileFormatError naming the file
+/// Reads and parses a whole file (parse_safetensors). Throws core::FileFormatError naming the file
 /// when it cannot be opened or read.
 Safetensors read_safetensors(const std::filesystem::path& path);
 /// Writes through a temporary file and a rename; `sealed` as serialize_safetensors.

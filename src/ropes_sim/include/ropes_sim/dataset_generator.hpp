@@ -4,7 +4,7 @@
 /// DatasetConfig, InterventionSampler::sample_anchor(seed, a) gives one configuration per
 /// regime (observational, then two interventions per intervened joint); Simbody places the
 /// links; every camera of the rig renders every configuration. Row r of the dataset is
-/// (anchor r / regimes, regime r % regimes), with columns (ropes_nn's dataset container):
+/// (anchor r / regimes, regime r % regimes), with columns (ropes_core's dataset container):
 ///   images  u8  [n, cameras, height, width]   grey, rows top to bottom
 ///   angles  f32 [n, joints]                   the distribution's joints, radians
 ///   regime  i32 [n]                           index into the manifest's regime_names

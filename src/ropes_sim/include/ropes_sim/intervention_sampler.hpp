@@ -79,7 +79,7 @@ class InterventionSampler {
     std::vector<std::pair<int, double>> parents;  // sem
   };
   // observational values and the sem noise of one anchor
-  void draw_observational(nn::PhiloxStream& rng, std::vector<double>* q,
+  void draw_observational(core::PhiloxStream& rng, std::vector<double>* q,
                           std::vector<double>* noise) const;
   // recomputes the sem children of joint `changed` (and theirs) in joint order
   void propagate(int changed, const std::vector<double>& noise, std::vector<double>* q) const;

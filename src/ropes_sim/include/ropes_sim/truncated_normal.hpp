@@ -2,7 +2,7 @@
 /// @file truncated_normal.hpp
 /// TruncatedNormal: the TN_[a,b](mu, sigma^2) distribution of the ROPES paper's sampling tables.
 
-#include <ropes_nn/philox.hpp>
+#include <ropes_core/philox.hpp>
 
 namespace ropes::sim {
 
@@ -25,7 +25,7 @@ class TruncatedNormal {
   TruncatedNormal(double mu, double sigma, double lower, double upper);
 
   /// One draw; advances `rng` by one uniform_double() (two 32-bit words).
-  double sample(nn::PhiloxStream& rng) const;
+  double sample(core::PhiloxStream& rng) const;
 
   /// The u-quantile, u in [0, 1]: quantile(0) == lower, quantile(1) == upper.
   /// Throws std::invalid_argument for u outside [0, 1].
