@@ -9,7 +9,7 @@ using Json = nlohmann::json;
 std::string parse_json(const std::string& text, Json* out) {
   bool too_deep = false;
   const Json::parser_callback_t limit = [&too_deep](int depth, Json::parse_event_t, Json&) {
-    if (depth > kMaxJsonDepth)
+    if (depth >= kMaxJsonDepth)  // depth counts from 0 at the outermost value
       too_deep = true;
     return !too_deep;
   };
@@ -21,6 +21,13 @@ std::string parse_json(const std::string& text, Json* out) {
   if (too_deep)
     return "nests deeper than " + std::to_string(kMaxJsonDepth) + " levels";
   return "";
+}
+
+Json parse_json_or_discarded(const std::string& text) {
+  Json value;
+  if (!parse_json(text, &value).empty())
+    return Json(Json::value_t::discarded);
+  return value;
 }
 
 Json read_json_file(const std::filesystem::path& path, std::uint64_t max_bytes) {

@@ -8,6 +8,7 @@
 
 #include <ropes_core/file_format_error.hpp>
 #include <ropes_core/file_io.hpp>
+#include <ropes_core/json_text.hpp>
 
 namespace ropes::crl {
 
@@ -41,7 +42,7 @@ nlohmann::json json_if_readable(const std::filesystem::path& path, std::uint64_t
   if (!std::filesystem::is_regular_file(path, ec))
     return nlohmann::json(nlohmann::json::value_t::discarded);
   try {
-    return nlohmann::json::parse(core::read_text_file(path, limit), nullptr, false);
+    return core::parse_json_or_discarded(core::read_text_file(path, limit));
   } catch (const core::FileFormatError&) {
     return nlohmann::json(nlohmann::json::value_t::discarded);
   }

@@ -1,6 +1,7 @@
 #include "ropes_crl/estimator.hpp"
 
 #include <ropes_core/file_format_error.hpp>
+#include <ropes_core/json_text.hpp>
 #include <ropes_nn/checkpoint.hpp>
 #include <ropes_nn/ops.hpp>
 
@@ -64,7 +65,7 @@ void load_weights(Net& net, const fs::path& path) {
 }  // namespace
 
 Estimator Estimator::load(const fs::path& run_dir) {
-  const nlohmann::json run = detail::read_json_file(run_dir / "run.json");
+  const nlohmann::json run = core::read_json_file(run_dir / "run.json");
   // a run.json of another shape ("format": 5, an array) is not a run, not a JSON exception
   // (found by fuzz/run_dir)
   const auto field = [&run](const char* key) {

@@ -7,6 +7,7 @@
 #include "json_fields.hpp"
 #include "ropes_core/file_format_error.hpp"
 #include "ropes_core/file_io.hpp"
+#include "ropes_core/json_text.hpp"
 #include "ropes_core/package_share.hpp"
 #include "ropes_core/plain_name.hpp"
 
@@ -300,19 +301,13 @@ ExperimentConfig load_experiment_config(const std::string& name_or_path) {
     }
     path = installed;
   }
-  std::string text;
-  try {
-    text = core::read_text_file(path, core::kMaxJsonFileBytes);  // a huge file: refused by size
-  } catch (const core::FileFormatError& e) {
-    throw std::invalid_argument(e.what());
-  }
+  // a huge file is refused by its size; a number too large for any type (found by
+  // fuzz/experiment_config) is "not JSON"
   nlohmann::json j;
   try {
-    j = nlohmann::json::parse(text);
-  } catch (const nlohmann::json::exception& e) {
-    // parse_error, and out_of_range for a number too large for any type (found by
-    // fuzz/experiment_config)
-    throw std::invalid_argument(path.string() + ": not valid JSON (" + e.what() + ")");
+    j = core::read_json_file(path);
+  } catch (const core::FileFormatError& e) {
+    throw std::invalid_argument(e.what());
   }
   return ExperimentConfig::from_json(j, path.string());
 }

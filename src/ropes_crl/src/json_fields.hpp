@@ -1,6 +1,7 @@
 #pragma once
 // Reading typed fields from JSON with errors that name the field, the value and what was
-// expected. `where` is a path prefix such as "ae1" or "config.ldr".
+// expected. `where` is a path prefix such as "ae1" or "config.ldr". Values come from files:
+// they are shown with core::describe, never dump() (its recursion is as deep as the value).
 #include <nlohmann/json.hpp>
 
 #include <cstdint>
@@ -8,12 +9,14 @@
 #include <string>
 #include <vector>
 
+#include "ropes_core/json_text.hpp"
+
 namespace ropes::crl::detail {
 
 inline const nlohmann::json& field(const nlohmann::json& j, const std::string& where,
                                    const std::string& key) {
   if (!j.is_object())
-    throw std::invalid_argument(where + ": expected an object, got " + j.dump());
+    throw std::invalid_argument(where + ": expected an object, got " + core::describe(j));
   const auto it = j.find(key);
   if (it == j.end())
     throw std::invalid_argument(where + "." + key + ": missing");
@@ -24,7 +27,8 @@ inline std::int64_t get_int(const nlohmann::json& j, const std::string& where,
                             const std::string& key) {
   const nlohmann::json& v = field(j, where, key);
   if (!v.is_number_integer())
-    throw std::invalid_argument(where + "." + key + ": expected an integer, got " + v.dump());
+    throw std::invalid_argument(where + "." + key + ": expected an integer, got " +
+                                core::describe(v));
   return v.get<std::int64_t>();
 }
 
@@ -32,14 +36,16 @@ inline double get_double(const nlohmann::json& j, const std::string& where,
                          const std::string& key) {
   const nlohmann::json& v = field(j, where, key);
   if (!v.is_number())
-    throw std::invalid_argument(where + "." + key + ": expected a number, got " + v.dump());
+    throw std::invalid_argument(where + "." + key + ": expected a number, got " +
+                                core::describe(v));
   return v.get<double>();
 }
 
 inline bool get_bool(const nlohmann::json& j, const std::string& where, const std::string& key) {
   const nlohmann::json& v = field(j, where, key);
   if (!v.is_boolean())
-    throw std::invalid_argument(where + "." + key + ": expected true or false, got " + v.dump());
+    throw std::invalid_argument(where + "." + key + ": expected true or false, got " +
+                                core::describe(v));
   return v.get<bool>();
 }
 
@@ -47,7 +53,8 @@ inline std::string get_string(const nlohmann::json& j, const std::string& where,
                               const std::string& key) {
   const nlohmann::json& v = field(j, where, key);
   if (!v.is_string())
-    throw std::invalid_argument(where + "." + key + ": expected a string, got " + v.dump());
+    throw std::invalid_argument(where + "." + key + ": expected a string, got " +
+                                core::describe(v));
   return v.get<std::string>();
 }
 
@@ -56,12 +63,12 @@ inline std::vector<std::int64_t> get_ints(const nlohmann::json& j, const std::st
   const nlohmann::json& v = field(j, where, key);
   if (!v.is_array())
     throw std::invalid_argument(where + "." + key + ": expected an array of integers, got " +
-                                v.dump());
+                                core::describe(v));
   std::vector<std::int64_t> out;
   for (const nlohmann::json& e : v) {
     if (!e.is_number_integer())
       throw std::invalid_argument(where + "." + key + ": expected an array of integers, got " +
-                                  v.dump());
+                                  core::describe(v));
     out.push_back(e.get<std::int64_t>());
   }
   return out;
@@ -77,7 +84,7 @@ inline std::vector<std::string> get_strings(const nlohmann::json& j, const std::
         out.push_back(e.get<std::string>());
   if (!v.is_array() || out.size() != v.size())
     throw std::invalid_argument(where + "." + key + ": expected an array of strings, got " +
-                                v.dump());
+                                core::describe(v));
   return out;
 }
 
@@ -85,7 +92,7 @@ inline std::vector<std::string> get_strings(const nlohmann::json& j, const std::
 inline void reject_unknown_keys(const nlohmann::json& j, const std::string& where,
                                 const std::vector<std::string>& known) {
   if (!j.is_object())  // found by fuzz/experiment_config: a config file holding "0"
-    throw std::invalid_argument(where + ": expected a JSON object, got " + j.dump());
+    throw std::invalid_argument(where + ": expected a JSON object, got " + core::describe(j));
   for (auto it = j.begin(); it != j.end(); ++it) {
     bool ok = false;
     for (const std::string& k : known)

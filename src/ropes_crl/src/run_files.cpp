@@ -14,14 +14,6 @@
 
 namespace ropes::crl::detail {
 
-nlohmann::json read_json_file(const fs::path& path) {
-  const std::string text = core::read_text_file(path, core::kMaxJsonFileBytes);
-  const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
-  if (j.is_discarded())
-    throw core::FileFormatError(path.string() + ": not valid JSON");
-  return j;
-}
-
 void write_json_file(const fs::path& path, const nlohmann::json& j) {
   const std::string text = j.dump(2) + "\n";
   core::write_file_atomically(path, reinterpret_cast<const std::uint8_t*>(text.data()),

@@ -2,6 +2,7 @@
 // Private helpers of the trainer and the estimator: the run directory's file names, its
 // metadata conventions, JSON files written atomically, the metrics log, the progress line.
 #include <ropes_core/dataset.hpp>
+#include <ropes_core/json_text.hpp>
 #include <ropes_nn/tensor.hpp>
 
 #include <nlohmann/json.hpp>
@@ -42,8 +43,6 @@ inline fs::path checkpoint_of(const fs::path& weights) {
   return p;
 }
 
-/// Reads a JSON file; FileFormatError naming it when missing or malformed.
-nlohmann::json read_json_file(const fs::path& path);
 /// Writes `j` (indented) to `path` through a temporary and a rename.
 void write_json_file(const fs::path& path, const nlohmann::json& j);
 
@@ -73,7 +72,7 @@ void MetricsLog::truncate(Keep keep) const {
   const std::lock_guard<std::mutex> lock(mutex_);
   std::vector<std::string> kept;
   for (const std::string& line : lines()) {
-    const nlohmann::json j = nlohmann::json::parse(line, nullptr, false);
+    const nlohmann::json j = core::parse_json_or_discarded(line);
     if (!j.is_discarded() && j.is_object() && keep(j))
       kept.push_back(line);
   }

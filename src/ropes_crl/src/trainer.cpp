@@ -1,6 +1,7 @@
 #include "ropes_crl/trainer.hpp"
 
 #include <ropes_core/file_io.hpp>
+#include <ropes_core/json_text.hpp>
 #include <ropes_core/npy.hpp>
 #include <ropes_core/philox.hpp>
 #include <ropes_nn/adam.hpp>
@@ -159,7 +160,7 @@ nlohmann::json open_run(const ExperimentConfig& config, const TrainingData& data
       {"config", config.to_json()}, {"dataset", data.dataset_id}, {"seed", options.seed}};
   const nlohmann::json provenance = nn::provenance(options.threads);
   if (fs::exists(run_json)) {
-    nlohmann::json run = read_json_file(run_json);
+    nlohmann::json run = core::read_json_file(run_json);
     if (!run.is_object() || !run.contains("format") || run["format"] != kRunFormat)
       throw std::invalid_argument(
           run_json.string() + ": not a ropes run (format " +

@@ -1,6 +1,7 @@
 #include "training_data.hpp"
 
 #include <ropes_core/dataset.hpp>
+#include <ropes_core/json_text.hpp>
 #include <ropes_core/npy.hpp>
 #include <ropes_nn/checkpoint.hpp>
 #include <ropes_nn/ops.hpp>
@@ -51,7 +52,7 @@ TrainingData TrainingData::open(const ExperimentConfig& config, const fs::path& 
                                 std::uint64_t seed) {
   TrainingData d{dir, core::DatasetReader::open(dir), {}, 0, {}, {}, {}, {}, {}, {}, {}};
   const fs::path manifest = dir / "manifest.json";
-  d.dataset_id = read_json_file(manifest).value("dataset", "");
+  d.dataset_id = core::read_json_file(manifest).value("dataset", "");
   d.rows = d.reader.rows();
   require_current_sim_dataset(d.reader);  // never train on the old reading of TN(mean, x)
   d.reader.verify();  // a shard damaged after generation is refused, never trained on

@@ -3,6 +3,7 @@
 #include <ropes_core/dataset.hpp>
 #include <ropes_core/dtype.hpp>
 #include <ropes_core/file_io.hpp>
+#include <ropes_core/json_text.hpp>
 #include <ropes_crl/dataset_version.hpp>
 #include <ropes_crl/estimator.hpp>
 #include <ropes_msgs/dds.hpp>
@@ -135,8 +136,8 @@ class Node {
 };
 
 ropes::crl::Calibration read_calibration(const fs::path& file) {
-  const nlohmann::json j = nlohmann::json::parse(
-      ropes::core::read_text_file(file, ropes::core::kMaxJsonFileBytes), nullptr, false);
+  const nlohmann::json j = ropes::core::parse_json_or_discarded(
+      ropes::core::read_text_file(file, ropes::core::kMaxJsonFileBytes));
   if (j.is_discarded())
     throw std::runtime_error(file.string() + ": not valid JSON");
   try {

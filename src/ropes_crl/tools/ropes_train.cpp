@@ -1,5 +1,6 @@
 // ropes-train: the three stages of ROPES on a dataset, into a run directory; resumable.
 #include <ropes_core/cli.hpp>
+#include <ropes_core/json_text.hpp>
 #include <ropes_crl/trainer.hpp>
 #ifdef ROPES_TRAIN_STATUS
 #include <ropes_msgs/dds.hpp>
@@ -93,7 +94,7 @@ void apply_override(nlohmann::json& config, const std::string& assignment) {
   if (eq == std::string::npos || eq == 0)
     throw UsageError("--set '" + assignment + "': expected KEY=VALUE");
   const std::string key = assignment.substr(0, eq), text = assignment.substr(eq + 1);
-  nlohmann::json value = nlohmann::json::parse(text, nullptr, false);
+  nlohmann::json value = ropes::core::parse_json_or_discarded(text);
   if (value.is_discarded())
     value = text;  // a bare word is a string
   nlohmann::json* at = &config;

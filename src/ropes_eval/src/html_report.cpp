@@ -1,6 +1,7 @@
 #include "ropes_eval/html_report.hpp"
 
 #include <ropes_core/dataset.hpp>
+#include <ropes_core/json_text.hpp>
 #include <ropes_core/npy.hpp>
 #include <ropes_crl/estimator.hpp>
 
@@ -516,7 +517,7 @@ std::string html_report(const EvaluationReport& report, const fs::path& run_dir,
   h << "<h2>Training curves</h2>\n";
   std::map<std::string, std::map<std::string, Series>> curves;  // stage -> model -> series
   for (const std::string& line : detail::read_log_lines(run_dir / "metrics.jsonl")) {
-    const nlohmann::json m = nlohmann::json::parse(line, nullptr, false);
+    const nlohmann::json m = core::parse_json_or_discarded(line);
     if (!m.is_object() || !m.contains("stage") || !m["stage"].is_string())
       continue;
     const std::string stage = m["stage"].get<std::string>();

@@ -1,7 +1,9 @@
 #pragma once
-// Reading the JSON files of a run or a dataset (private to ropes_eval).
+// Reading the JSON files of a run or a dataset that may be absent, and writing numbers
+// (private to ropes_eval; a file that must be there: core::read_json_file).
 #include <ropes_core/file_format_error.hpp>
 #include <ropes_core/file_io.hpp>
+#include <ropes_core/json_text.hpp>
 
 #include <nlohmann/json.hpp>
 
@@ -21,23 +23,13 @@ inline nlohmann::json numbers_or_null(const std::vector<double>& v) {
   return a;
 }
 
-// the file's JSON; core::FileFormatError naming it when it cannot be opened or parsed, or
-// holds more than core::kMaxJsonFileBytes (refused by its size, before it is read)
-inline nlohmann::json read_json_file(const std::filesystem::path& path) {
-  const nlohmann::json j =
-      nlohmann::json::parse(core::read_text_file(path, core::kMaxJsonFileBytes), nullptr, false);
-  if (j.is_discarded())
-    throw core::FileFormatError(path.string() + ": not valid JSON");
-  return j;
-}
-
 // the file's JSON, or a discarded value when it is missing or not JSON (a file that may be
 // absent); one over core::kMaxJsonFileBytes is still refused (core::FileFormatError)
 inline nlohmann::json read_json_if_there(const std::filesystem::path& path) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec))
     return nlohmann::json(nlohmann::json::value_t::discarded);
-  return nlohmann::json::parse(core::read_text_file(path, core::kMaxJsonFileBytes), nullptr, false);
+  return core::parse_json_or_discarded(core::read_text_file(path, core::kMaxJsonFileBytes));
 }
 
 // the lines of a log that may be absent (none then); one over core::kMaxLogFileBytes is

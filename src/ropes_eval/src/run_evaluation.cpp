@@ -1,6 +1,7 @@
 #include "ropes_eval/run_evaluation.hpp"
 
 #include <ropes_core/dataset.hpp>
+#include <ropes_core/json_text.hpp>
 #include <ropes_core/npy.hpp>
 #include <ropes_core/package_share.hpp>
 #include <ropes_crl/dataset_version.hpp>
@@ -255,7 +256,7 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
   crl::Estimator estimator = crl::Estimator::load(run_dir);
   crl::require_run_of_current_sim_dataset(run_dir);  // nor a run trained on it
   const crl::ExperimentConfig& config = estimator.config();
-  const nlohmann::json run = detail::read_json_file(run_dir / "run.json");
+  const nlohmann::json run = core::read_json_file(run_dir / "run.json");
   ev.config_name = config.name;
   ev.setting = config.name.substr(0, config.name.rfind('-'));
   ev.joints = config.joints;
@@ -280,7 +281,7 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
   crl::require_current_sim_dataset(reader);  // never the old reading of TN(mean, x)
   reader.verify();  // a shard damaged after generation is refused, never evaluated on
   const fs::path manifest = data_dir / "manifest.json";
-  ev.dataset_id = detail::read_json_file(manifest).value("dataset", "");
+  ev.dataset_id = core::read_json_file(manifest).value("dataset", "");
   if (ev.dataset_id == ev.train_dataset_id)
     throw std::invalid_argument(
         data_dir.string() + " is the dataset the run trained on (dataset id " +
@@ -581,7 +582,7 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
   }
 
   // the paper's numbers for this setting
-  const nlohmann::json paper = detail::read_json_file(
+  const nlohmann::json paper = core::read_json_file(
       options.paper_results.empty() ? installed_paper_results() : options.paper_results);
   for (const std::string& j : config.joints) {
     const nlohmann::json* p = nullptr;

@@ -1,6 +1,7 @@
 #include "ropes_eval/screening.hpp"
 
 #include <ropes_core/dataset.hpp>
+#include <ropes_core/json_text.hpp>
 #include <ropes_core/npy.hpp>
 #include <ropes_crl/dataset_version.hpp>
 
@@ -52,7 +53,7 @@ Screening screen_run(const fs::path& run_dir, const ScreeningOptions& options) {
   s.seed = options.seed;
   s.probe_steps = options.probe_steps;
   const fs::path run_json = run_dir / "run.json";
-  const nlohmann::json run = detail::read_json_file(run_json);
+  const nlohmann::json run = core::read_json_file(run_json);
   if (!run.is_object() || run.value("format", "") != "ropes-run" || !run.contains("joints") ||
       !run["joints"].is_array() || !run.contains("data_dir") || !run["data_dir"].is_string())
     throw core::FileFormatError(run_json.string() +

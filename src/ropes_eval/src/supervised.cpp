@@ -1,6 +1,7 @@
 #include "ropes_eval/supervised.hpp"
 
 #include <ropes_core/dataset.hpp>
+#include <ropes_core/json_text.hpp>
 #include <ropes_core/npy.hpp>
 #include <ropes_crl/experiment_config.hpp>
 #include <ropes_crl/networks.hpp>
@@ -59,7 +60,7 @@ SupervisedEncoder SupervisedEncoder::train(const fs::path& run_dir, double fract
     throw std::invalid_argument("SupervisedEncoder::train: fraction " + std::to_string(fraction) +
                                 "; expected 0 < fraction <= 1");
   auto s = std::make_unique<State>();
-  const nlohmann::json run = detail::read_json_file(run_dir / "run.json");
+  const nlohmann::json run = core::read_json_file(run_dir / "run.json");
   try {
     s->config = crl::ExperimentConfig::from_json(run.at("config"), (run_dir / "run.json").string());
   } catch (const std::exception& e) {

@@ -2,6 +2,7 @@
 // three ROPES stages, evaluate the suites, write the report — with one progress display,
 // resumable at and inside its stages.
 #include <ropes_core/file_io.hpp>
+#include <ropes_core/json_text.hpp>
 #include <ropes_crl/experiment_config.hpp>
 #include <ropes_crl/trainer.hpp>
 #include <ropes_nn/parallel.hpp>
@@ -71,8 +72,8 @@ void write_text(const fs::path& path, const std::string& text) {
 nlohmann::json read_state(const fs::path& p) {
   if (!fs::exists(p))
     return nlohmann::json::object();
-  const nlohmann::json j = nlohmann::json::parse(
-      ropes::core::read_text_file(p, ropes::core::kMaxJsonFileBytes), nullptr, false);
+  const nlohmann::json j = ropes::core::parse_json_or_discarded(
+      ropes::core::read_text_file(p, ropes::core::kMaxJsonFileBytes));
   const bool shaped = j.is_object() && j.value("format", "") == "ropes-run" &&
                       (!j.contains("identity") || j["identity"].is_object()) &&
                       (!j.contains("stages") || j["stages"].is_object());

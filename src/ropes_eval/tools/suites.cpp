@@ -2,6 +2,7 @@
 
 #include <ropes_core/dataset.hpp>
 #include <ropes_core/file_io.hpp>
+#include <ropes_core/json_text.hpp>
 #include <ropes_crl/dataset_version.hpp>
 #include <ropes_eval/html_report.hpp>
 #include <ropes_eval/screening.hpp>
@@ -53,8 +54,7 @@ RunFacts run_facts(const fs::path& run_dir) {
   std::error_code ec;
   const nlohmann::json run =
       fs::is_regular_file(run_file, ec)
-          ? nlohmann::json::parse(core::read_text_file(run_file, core::kMaxJsonFileBytes), nullptr,
-                                  false)
+          ? core::parse_json_or_discarded(core::read_text_file(run_file, core::kMaxJsonFileBytes))
           : nlohmann::json();
   if (!run.is_object())
     throw std::invalid_argument(run_file.string() + ": missing or not JSON; is '" +
@@ -68,8 +68,7 @@ RunFacts run_facts(const fs::path& run_dir) {
   const fs::path manifest = fs::path(run.value("data_dir", "")) / "manifest.json";
   const nlohmann::json j =
       fs::is_regular_file(manifest, ec)
-          ? nlohmann::json::parse(core::read_text_file(manifest, core::kMaxJsonFileBytes), nullptr,
-                                  false)
+          ? core::parse_json_or_discarded(core::read_text_file(manifest, core::kMaxJsonFileBytes))
           : nlohmann::json();
   const nlohmann::json::json_pointer seed("/metadata/seed");
   if (j.is_object() && j.contains(seed)) {
@@ -98,8 +97,8 @@ std::shared_ptr<RobotMasks> robot_masks_of(const TestData& test) {
     return out;
   }
   const fs::path manifest = test.dir / "manifest.json";
-  const nlohmann::json j = nlohmann::json::parse(
-      core::read_text_file(manifest, core::kMaxJsonFileBytes), nullptr, false);
+  const nlohmann::json j =
+      core::parse_json_or_discarded(core::read_text_file(manifest, core::kMaxJsonFileBytes));
   const nlohmann::json::json_pointer names("/metadata/joint_names");
   if (!j.is_object() || !j.contains(names) || !j[names].is_array()) {
     out->why = manifest.string() + " has no metadata.joint_names";

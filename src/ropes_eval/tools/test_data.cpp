@@ -2,6 +2,7 @@
 
 #include <ropes_core/file_format_error.hpp>
 #include <ropes_core/file_io.hpp>
+#include <ropes_core/json_text.hpp>
 #include <ropes_core/package_share.hpp>
 #include <ropes_core/plain_name.hpp>
 #include <ropes_core/sha256.hpp>
@@ -38,10 +39,11 @@ std::string read_text(const fs::path& p) {
 }
 
 nlohmann::json read_json(const fs::path& p) {
-  const nlohmann::json j = nlohmann::json::parse(read_text(p), nullptr, false);
-  if (j.is_discarded())
-    throw std::invalid_argument(p.string() + ": not valid JSON");
-  return j;
+  try {
+    return core::read_json_file(p);
+  } catch (const core::FileFormatError& e) {
+    throw std::invalid_argument(e.what());
+  }
 }
 
 // the installed ropes_sim's dataset configs (core::find_package_share)

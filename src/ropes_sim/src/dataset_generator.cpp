@@ -17,6 +17,7 @@
 #include "json_config.hpp"
 #include "ropes_core/dataset.hpp"
 #include "ropes_core/file_io.hpp"
+#include "ropes_core/json_text.hpp"
 #include "ropes_core/npy.hpp"
 #include "ropes_core/sha256.hpp"
 #include "ropes_sim/intervention_sampler.hpp"
@@ -132,20 +133,6 @@ class WorkerPool {
   bool stop_ = false;
 };
 
-Json read_json(const fs::path& path) {
-  std::string text;
-  try {
-    text = core::read_text_file(path, core::kMaxJsonFileBytes);
-  } catch (const core::FileFormatError& e) {
-    throw std::runtime_error(e.what());
-  }
-  try {
-    return Json::parse(text);
-  } catch (const Json::exception& e) {
-    throw std::runtime_error(path.string() + ": not JSON (" + e.what() + ")");
-  }
-}
-
 std::string short_dump(const Json& v) {
   std::string text = v.dump();
   return text.size() > 60 ? text.substr(0, 57) + "..." : text;
@@ -203,7 +190,7 @@ bool prepare_directory(const fs::path& dir, const std::string& metadata) {
   core::remove_stale_temporaries(dir);
   core::remove_stale_temporaries(dir / "shards");
   if (fs::exists(manifest)) {
-    const Json theirs = read_json(manifest);
+    const Json theirs = core::read_json_file(manifest);
     const Json& meta = theirs.contains("metadata") ? theirs["metadata"] : Json();
     refuse_old_reading(dir, manifest, meta);
     if (meta != ours)
@@ -213,7 +200,7 @@ bool prepare_directory(const fs::path& dir, const std::string& metadata) {
     return true;
   }
   if (fs::exists(generation)) {
-    const Json theirs = read_json(generation);
+    const Json theirs = core::read_json_file(generation);
     refuse_old_reading(dir, generation, theirs);
     if (theirs != ours)
       throw std::runtime_error(

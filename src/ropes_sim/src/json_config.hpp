@@ -9,6 +9,7 @@
 
 #include "ropes_core/file_format_error.hpp"
 #include "ropes_core/file_io.hpp"
+#include "ropes_core/json_text.hpp"
 #include "ropes_sim/intervention_sampler.hpp"  // ConfigError
 
 namespace ropes::sim::detail {
@@ -16,22 +17,15 @@ namespace ropes::sim::detail {
 // the JSON object in `path`; ConfigError naming the file when it cannot be opened, is not
 // JSON or is not an object. `what` names the kind of file in the message.
 inline nlohmann::json read_config_object(const std::filesystem::path& path, const char* what) {
-  const std::string file = path.string();
-  std::string text;
+  // a huge file is refused by its size; nlohmann's message says where the text stops being JSON
+  nlohmann::json config;
   try {
-    text = core::read_text_file(path, core::kMaxJsonFileBytes);  // a huge file: refused by size
+    config = core::read_json_file(path);
   } catch (const core::FileFormatError& e) {
     throw ConfigError(std::string(e.what()) + " (the " + what + ")");
   }
-  nlohmann::json config;
-  // nlohmann's message says where the text stops being JSON: keep it
-  try {
-    config = nlohmann::json::parse(text);
-  } catch (const nlohmann::json::exception& e) {
-    throw ConfigError(file + ": not JSON: " + e.what());
-  }
   if (!config.is_object())
-    throw ConfigError(file + ": the config is not a JSON object");
+    throw ConfigError(path.string() + ": the config is not a JSON object");
   return config;
 }
 

@@ -125,5 +125,5 @@ sed -e 's|"single_camera"|{"name": "sky", "cameras": [{"name": "up", "target": [
 expect_error "rig camera 'up'" "$gen" --config "$work/sky.json" --out "$work/sky" --seed 1
 [ ! -e "$work/sky" ] || fail "a refused config left $work/sky behind"
 echo '{"name": "x"' > "$work/broken.json"
-expect_error "broken.json: not JSON" "$gen" --config "$work/broken.json" --out "$work/x" --seed 1
+expect_error "broken.json: is not JSON" "$gen" --config "$work/broken.json" --out "$work/x" --seed 1
 echo PASS

@@ -21,6 +21,10 @@ inline constexpr int kMaxJsonDepth = 64;
 /// that dumping or destroying the value later cannot overflow the stack.
 std::string parse_json(const std::string& text, nlohmann::json* out);
 
+/// `text` parsed as parse_json does, or a discarded value (is_discarded()) when it is not JSON
+/// or nests too deep: for callers that treat a bad file like a missing one.
+nlohmann::json parse_json_or_discarded(const std::string& text);
+
 /// The JSON value in the file at `path`, read with read_text_file(path, max_bytes). Throws
 /// FileFormatError naming the file: when it cannot be read, is larger than `max_bytes`, is not
 /// JSON or nests deeper than kMaxJsonDepth.

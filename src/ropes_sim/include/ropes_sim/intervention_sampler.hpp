@@ -26,14 +26,16 @@
 #include <string>
 #include <vector>
 
+#include "ropes_core/file_format_error.hpp"
 #include "ropes_sim/truncated_normal.hpp"
 
 namespace ropes::sim {
 
 /// Thrown for a config file that cannot be used; the message names the file and the field.
-class ConfigError : public std::runtime_error {
+/// A core::FileFormatError, as every refusal of a file in the workspace is.
+class ConfigError : public core::FileFormatError {
  public:
-  using std::runtime_error::runtime_error;
+  using core::FileFormatError::FileFormatError;
 };
 
 class InterventionSampler {
