@@ -1,5 +1,6 @@
 #!/usr/bin/python3
-"""Every relative link in every README (and in the docs they link) resolves.
+"""Every relative link in every README (and in the docs they link) resolves, and the top-level
+README stays short enough to read in ten minutes (at most 200 lines).
 
 A link [text](target) whose target is not a URL must name a file or directory that exists,
 relative to the Markdown file, and its #anchor, if any, a heading of the target (GitHub's
@@ -32,13 +33,22 @@ def anchors(path):
 
 def markdown_files(root):
     files = [root / "README.md"] + sorted(root.glob("src/*/README.md"))
-    files += sorted(root.glob("docs/*.md"))
+    files += sorted(root.glob("docs/**/*.md"))
     return [f for f in files if f.is_file()]
+
+
+MAX_TOP_README_LINES = 200
 
 
 def check(root):
     problems = []
     files = markdown_files(root)
+    top = root / "README.md"
+    if top.is_file():
+        lines = len(top.read_text(encoding="utf-8").splitlines())
+        if lines > MAX_TOP_README_LINES:
+            problems.append(f"README.md has {lines} lines; keep it to {MAX_TOP_README_LINES} "
+                            "(move campaigns and history to dated files under docs/)")
     links = 0
     for md in files:
         text = FENCE.sub("", md.read_text(encoding="utf-8"))
