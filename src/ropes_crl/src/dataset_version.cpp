@@ -10,6 +10,8 @@
 #include <ropes_core/file_io.hpp>
 #include <ropes_core/json_text.hpp>
 
+#include "ropes_crl/run_directory.hpp"
+
 namespace ropes::crl {
 
 namespace {
@@ -56,10 +58,10 @@ void require_current_sim_dataset(const core::DatasetReader& reader) {
 }
 
 void require_run_of_current_sim_dataset(const std::filesystem::path& run_dir) {
-  const nlohmann::json run = json_if_readable(run_dir / "run.json", core::kMaxJsonFileBytes);
-  if (!run.is_object() || !run.contains("data_dir") || !run["data_dir"].is_string())
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(run_dir / "run.json", ec))
     return;
-  const std::filesystem::path data_dir = run["data_dir"].get<std::string>();
+  const std::filesystem::path data_dir = RunDirectory::open(run_dir).data_dir();
   // a manifest may be as large as ropes_nn's DatasetReader allows (64 MiB)
   const nlohmann::json manifest =
       json_if_readable(data_dir / "manifest.json", std::uint64_t{64} << 20);

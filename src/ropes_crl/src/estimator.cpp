@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "json_fields.hpp"
+#include "ropes_crl/run_directory.hpp"
 #include "run_files.hpp"
 
 namespace ropes::crl {
@@ -65,24 +66,13 @@ void load_weights(Net& net, const fs::path& path) {
 }  // namespace
 
 Estimator Estimator::load(const fs::path& run_dir) {
-  const nlohmann::json run = core::read_json_file(run_dir / "run.json");
-  // a run.json of another shape ("format": 5, an array) is not a run, not a JSON exception
-  // (found by fuzz/run_dir)
-  const auto field = [&run](const char* key) {
-    return run.is_object() && run.contains(key) ? run[key] : nlohmann::json();
-  };
-  if (field("format") != detail::kRunFormat)
-    throw core::FileFormatError((run_dir / "run.json").string() + ": not a ropes run");
-  if (field("complete") != true)
-    throw core::FileFormatError((run_dir / "run.json").string() +
+  const RunDirectory run = RunDirectory::open(run_dir);
+  if (!run.complete())
+    throw core::FileFormatError(run.run_file().string() +
                                 ": the run has not finished training; run ropes-train again "
                                 "with the same arguments to resume it");
   auto s = std::make_unique<State>();
-  try {
-    s->config = ExperimentConfig::from_json(field("config"), (run_dir / "run.json").string());
-  } catch (const std::exception& e) {
-    throw core::FileFormatError(e.what());
-  }
+  s->config = run.config();
   const ExperimentConfig& c = s->config;
   s->ae1 = std::make_unique<Ae1>(c.ae1);
   load_weights(*s->ae1, detail::ae1_file(run_dir));

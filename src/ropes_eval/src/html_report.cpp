@@ -4,6 +4,7 @@
 #include <ropes_core/json_text.hpp>
 #include <ropes_core/npy.hpp>
 #include <ropes_crl/estimator.hpp>
+#include <ropes_crl/run_directory.hpp>
 
 #include <nlohmann/json.hpp>
 
@@ -551,21 +552,16 @@ std::string html_report(const EvaluationReport& report, const fs::path& run_dir,
   h << "</div>\n";
 
   // sparsity matrices
-  const nlohmann::json run = detail::read_json_if_there(run_dir / "run.json");
-  if (run.is_object() && run.contains("sparsity_matrix") && run["sparsity_matrix"].is_object()) {
+  std::error_code ec;
+  const std::vector<crl::SparsityMatrix> matrices =
+      fs::is_regular_file(run_dir / "run.json", ec)
+          ? crl::RunDirectory::open(run_dir).sparsity_matrices()
+          : std::vector<crl::SparsityMatrix>();
+  if (!matrices.empty()) {
     h << "<h2>Score sparsity: |score-difference Jacobian| per joint (rows) and latent "
          "(columns)</h2>\n<div class=\"row\">";
-    const nlohmann::json& sm = run["sparsity_matrix"];
-    for (auto it = sm.begin(); it != sm.end(); ++it) {
-      std::vector<std::vector<double>> m;
-      for (const nlohmann::json& row : it.value()) {
-        std::vector<double> r;
-        for (const nlohmann::json& v : row)
-          r.push_back(v.is_number() ? v.get<double>() : std::numeric_limits<double>::quiet_NaN());
-        m.push_back(r);
-      }
-      h << heat_map(m, joints, "AE2 " + it.key());
-    }
+    for (const crl::SparsityMatrix& m : matrices)
+      h << heat_map(m.rows, joints, "AE2 " + m.model);
     h << "</div>\n";
   }
 

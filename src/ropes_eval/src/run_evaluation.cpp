@@ -6,6 +6,7 @@
 #include <ropes_core/package_share.hpp>
 #include <ropes_crl/dataset_version.hpp>
 #include <ropes_crl/estimator.hpp>
+#include <ropes_crl/run_directory.hpp>
 #include <ropes_nn/adam.hpp>
 #include <ropes_nn/build_info.hpp>
 #include <ropes_nn/demand.hpp>
@@ -256,12 +257,12 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
   crl::Estimator estimator = crl::Estimator::load(run_dir);
   crl::require_run_of_current_sim_dataset(run_dir);  // nor a run trained on it
   const crl::ExperimentConfig& config = estimator.config();
-  const nlohmann::json run = core::read_json_file(run_dir / "run.json");
+  const crl::RunDirectory run = crl::RunDirectory::open(run_dir);
   ev.config_name = config.name;
   ev.setting = config.name.substr(0, config.name.rfind('-'));
   ev.joints = config.joints;
-  ev.train_dataset_id = run.value("dataset", "");
-  ev.provenance = {{"training", run.value("provenance", nlohmann::json())},
+  ev.train_dataset_id = run.dataset_id();
+  ev.provenance = {{"training", run.provenance()},
                    {"evaluation", nn::provenance(nn::num_threads())}};
   if (ev.provenance["training"].is_null())
     ev.provenance_differences.push_back("the run recorded no provenance (trained before it was)");
@@ -575,10 +576,9 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
   for (std::int64_t k = 0; k < jn; ++k) {
     const Eigen::VectorXd a = angles(test, Eigen::all).col(k);
     ev.angle_variance.push_back((a.array() - a.mean()).square().mean());
-    const nlohmann::json& l = run.contains("ldr") ? run["ldr"] : nlohmann::json::object();
-    const std::string& j = config.joints[static_cast<std::size_t>(k)];
-    ev.ldr_accuracy.push_back(l.contains(j) ? l[j].value("held_out_accuracy", NAN) : NAN);
-    ev.bayes_accuracy.push_back(l.contains(j) ? l[j].value("bayes_accuracy", NAN) : NAN);
+    const std::optional<crl::LdrRecord> l = run.ldr(config.joints[static_cast<std::size_t>(k)]);
+    ev.ldr_accuracy.push_back(l ? l->held_out_accuracy : NAN);
+    ev.bayes_accuracy.push_back(l ? l->bayes_accuracy : NAN);
   }
 
   // the paper's numbers for this setting

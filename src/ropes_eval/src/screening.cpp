@@ -4,6 +4,7 @@
 #include <ropes_core/json_text.hpp>
 #include <ropes_core/npy.hpp>
 #include <ropes_crl/dataset_version.hpp>
+#include <ropes_crl/run_directory.hpp>
 
 #include <Eigen/Core>
 
@@ -52,32 +53,19 @@ Screening screen_run(const fs::path& run_dir, const ScreeningOptions& options) {
   s.run_dir = run_dir.string();
   s.seed = options.seed;
   s.probe_steps = options.probe_steps;
-  const fs::path run_json = run_dir / "run.json";
-  const nlohmann::json run = core::read_json_file(run_json);
-  if (!run.is_object() || run.value("format", "") != "ropes-run" || !run.contains("joints") ||
-      !run["joints"].is_array() || !run.contains("data_dir") || !run["data_dir"].is_string())
-    throw core::FileFormatError(run_json.string() +
-                                ": not a ropes run (format ropes-run with "
-                                "joints and data_dir)");
-  for (const nlohmann::json& j : run["joints"]) {
-    if (!j.is_string())
-      throw core::FileFormatError(run_json.string() + ": joints holds a " + j.type_name() +
-                                  "; expected joint names");
-    s.joints.push_back(j.get<std::string>());
-  }
-  if (run.contains("config") && run["config"].is_object() && run["config"].contains("name") &&
-      run["config"]["name"].is_string())
-    s.config_name = run["config"]["name"].get<std::string>();
-  s.dataset_id = run.value("dataset", "");
+  const crl::RunDirectory run = crl::RunDirectory::open(run_dir);
+  s.joints = run.joints();
+  s.config_name = run.config().name;
+  s.dataset_id = run.dataset_id();
 
   // the codes of stage 1, row for row with the training set
-  const fs::path codes_path = run_dir / "codes.npy";
+  const fs::path codes_path = run.codes_file();
   if (!fs::is_regular_file(codes_path))
     throw core::FileFormatError(codes_path.string() +
                                 " is missing: AE1 has not finished (ropes-train --stages ae1 "
                                 "writes it)");
   const core::NpyArray codes = core::read_npy(codes_path);
-  const fs::path data_dir = run["data_dir"].get<std::string>();
+  const fs::path& data_dir = run.data_dir();
   const core::DatasetReader reader = core::DatasetReader::open(data_dir);
   crl::require_current_sim_dataset(reader);
   if (codes.dtype != core::DType::kF32 || codes.shape.size() != 4 ||
@@ -166,17 +154,9 @@ Screening screen_run(const fs::path& run_dir, const ScreeningOptions& options) {
 
   // the LDRs of stage 2, as the trainer recorded them
   for (const std::string& j : s.joints) {
-    double accuracy = kNaN, bayes = kNaN;
-    if (run.contains("ldr") && run["ldr"].is_object() && run["ldr"].contains(j) &&
-        run["ldr"][j].is_object()) {
-      const nlohmann::json& l = run["ldr"][j];
-      if (l.contains("held_out_accuracy") && l["held_out_accuracy"].is_number())
-        accuracy = l["held_out_accuracy"].get<double>();
-      if (l.contains("bayes_accuracy") && l["bayes_accuracy"].is_number())
-        bayes = l["bayes_accuracy"].get<double>();
-    }
-    s.ldr_accuracy.push_back(accuracy);
-    s.bayes_accuracy.push_back(bayes);
+    const std::optional<crl::LdrRecord> l = run.ldr(j);
+    s.ldr_accuracy.push_back(l ? l->held_out_accuracy : kNaN);
+    s.bayes_accuracy.push_back(l ? l->bayes_accuracy : kNaN);
   }
   return s;
 }

@@ -5,6 +5,7 @@
 #include <ropes_core/npy.hpp>
 #include <ropes_crl/experiment_config.hpp>
 #include <ropes_crl/networks.hpp>
+#include <ropes_crl/run_directory.hpp>
 #include <ropes_nn/adam.hpp>
 #include <ropes_nn/ops.hpp>
 #include <ropes_nn/train_step.hpp>
@@ -60,16 +61,12 @@ SupervisedEncoder SupervisedEncoder::train(const fs::path& run_dir, double fract
     throw std::invalid_argument("SupervisedEncoder::train: fraction " + std::to_string(fraction) +
                                 "; expected 0 < fraction <= 1");
   auto s = std::make_unique<State>();
-  const nlohmann::json run = core::read_json_file(run_dir / "run.json");
-  try {
-    s->config = crl::ExperimentConfig::from_json(run.at("config"), (run_dir / "run.json").string());
-  } catch (const std::exception& e) {
-    throw core::FileFormatError(e.what());
-  }
+  const crl::RunDirectory run = crl::RunDirectory::open(run_dir);
+  s->config = run.config();
   const crl::ExperimentConfig& c = s->config;
   // the training set's codes (the run's frozen AE1) and angles, row for row
-  const core::NpyArray codes = core::read_npy(run_dir / "codes.npy");
-  const core::DatasetReader reader = core::DatasetReader::open(run.value("data_dir", ""));
+  const core::NpyArray codes = core::read_npy(run.codes_file());
+  const core::DatasetReader reader = core::DatasetReader::open(run.data_dir());
   if (codes.dtype != core::DType::kF32 || codes.shape.size() != 4 ||
       codes.shape[0] != reader.rows())
     throw core::FileFormatError((run_dir / "codes.npy").string() + ": expected f32 [" +
@@ -88,7 +85,7 @@ SupervisedEncoder SupervisedEncoder::train(const fs::path& run_dir, double fract
       if (names[i] == j)
         at = static_cast<std::int64_t>(i);
     if (at < 0)
-      throw core::FileFormatError(run.value("data_dir", "") + ": no joint '" + j + "'");
+      throw core::FileFormatError(run.data_dir().string() + ": no joint '" + j + "'");
     column.push_back(at);
   }
   const std::int64_t jn = static_cast<std::int64_t>(c.joints.size());

@@ -7,6 +7,7 @@
 #include <ropes_core/dataset.hpp>
 #include <ropes_core/npy.hpp>
 #include <ropes_core/philox.hpp>
+#include <ropes_crl/experiment_config.hpp>
 
 #include <nlohmann/json.hpp>
 
@@ -27,6 +28,13 @@ using ropes::eval::Screening;
 using ropes::eval::ScreeningOptions;
 
 namespace {
+
+// a whole config, as a run.json holds one (RunDirectory reads it), named for this test
+nlohmann::json hand_made_config() {
+  nlohmann::json c = ropes::crl::load_experiment_config("1c-tiny").to_json();
+  c["name"] = "hand-made";
+  return c;
+}
 
 constexpr std::int64_t kAnchors = 300, kPerAnchor = 3, kRows = kAnchors * kPerAnchor;
 
@@ -68,7 +76,8 @@ fs::path make_run(const std::string& name) {
                               {"joints", {"a", "b", "c"}},
                               {"data_dir", (dir / "data").string()},
                               {"dataset", "made-by-hand"},
-                              {"config", {{"name", "hand-made"}}},
+                              {"seed", 0},
+                              {"config", hand_made_config()},
                               {"ldr",
                                {{"a", {{"held_out_accuracy", 0.91}, {"bayes_accuracy", 0.93}}},
                                 {"b", {{"held_out_accuracy", 0.52}, {"bayes_accuracy", 0.93}}}}}};

@@ -4,6 +4,7 @@
 #include <ropes_core/file_io.hpp>
 #include <ropes_core/json_text.hpp>
 #include <ropes_crl/dataset_version.hpp>
+#include <ropes_crl/run_directory.hpp>
 #include <ropes_eval/html_report.hpp>
 #include <ropes_eval/screening.hpp>
 #include <ropes_eval/supervised.hpp>
@@ -50,22 +51,11 @@ struct RunFacts {
 
 RunFacts run_facts(const fs::path& run_dir) {
   RunFacts f;
-  const fs::path run_file = run_dir / "run.json";
+  const crl::RunDirectory run = crl::RunDirectory::open(run_dir);
+  f.image_side = run.config().image_size;
+  f.cameras = run.config().cameras;
   std::error_code ec;
-  const nlohmann::json run =
-      fs::is_regular_file(run_file, ec)
-          ? core::parse_json_or_discarded(core::read_text_file(run_file, core::kMaxJsonFileBytes))
-          : nlohmann::json();
-  if (!run.is_object())
-    throw std::invalid_argument(run_file.string() + ": missing or not JSON; is '" +
-                                run_dir.string() + "' a run directory of ropes-train?");
-  const nlohmann::json::json_pointer side("/config/dataset/image_size");
-  if (run.contains(side) && run[side].is_number_integer())
-    f.image_side = run[side].get<std::int64_t>();
-  const nlohmann::json::json_pointer cameras("/config/dataset/cameras");
-  if (run.contains(cameras) && run[cameras].is_number_integer())
-    f.cameras = run[cameras].get<std::int64_t>();
-  const fs::path manifest = fs::path(run.value("data_dir", "")) / "manifest.json";
+  const fs::path manifest = run.data_dir() / "manifest.json";
   const nlohmann::json j =
       fs::is_regular_file(manifest, ec)
           ? core::parse_json_or_discarded(core::read_text_file(manifest, core::kMaxJsonFileBytes))

@@ -7,6 +7,7 @@
 #include <ropes_core/plain_name.hpp>
 #include <ropes_core/sha256.hpp>
 #include <ropes_crl/dataset_version.hpp>
+#include <ropes_crl/run_directory.hpp>
 #include <ropes_sim/dataset_config.hpp>
 #include <ropes_sim/dataset_generator.hpp>
 
@@ -90,8 +91,8 @@ std::string suite_config_name(const std::string& train_config, const std::string
 }
 
 TestData ensure_test_data(const TestDataRequest& request) {
-  const nlohmann::json run = read_json(request.run_dir / "run.json");
-  const fs::path train_dir = run.value("data_dir", "");
+  const crl::RunDirectory run = crl::RunDirectory::open(request.run_dir);
+  const fs::path& train_dir = run.data_dir();
   const fs::path manifest = train_dir / "manifest.json";
   if (train_dir.empty() || !fs::is_regular_file(manifest))
     throw std::invalid_argument(

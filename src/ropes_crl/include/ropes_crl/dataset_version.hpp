@@ -27,7 +27,8 @@ void require_current_sim_dataset(const core::DatasetReader& reader);
 /// RUN/run.json, the training set's manifest, the version and what to do (generate the
 /// dataset again and train the run again) when the manifest run.json's data_dir points to
 /// holds a sim_dataset_version below kOldestSimDatasetVersion. A run whose training set is
-/// gone or unreadable passes (there is nothing to tell), as does a run.json without data_dir.
+/// gone or unreadable passes (there is nothing to tell), as does a directory without run.json;
+/// a run.json that is not a run's is refused as RunDirectory::open refuses it.
 /// Cost: reads run.json and the manifest.
 void require_run_of_current_sim_dataset(const std::filesystem::path& run_dir);
 
