@@ -15,6 +15,12 @@
 # and CTest, and gives every target of the package the workspace's warning flags:
 # -Wall -Wextra -Wpedantic -Wshadow, and -Werror with ROPES_WERROR=ON (CI).
 #
+# ropes_find_streaming(<var> <what>) is the option ROPES_WITH_DDS of a package whose streaming
+# executables need ropes_msgs built with Fast DDS: AUTO (the default) builds them when
+# ropes_msgs has the types, ON requires it (a fatal error with ropes_msgs' reason), OFF leaves
+# them out. Sets <var> TRUE when ropes_msgs::ropes_msgs can be linked, and prints
+# "<package>: <what> TRUE|FALSE".
+#
 # ropes_add_gtests(<target>) registers a GoogleTest executable's tests with ctest, each at run
 # time (DISCOVERY_MODE PRE_TEST): those whose suite or name holds "Golden" (pinned values) with
 # the label golden, the others with the label unit.
@@ -57,6 +63,25 @@ macro(ropes_package)
   include(GNUInstallDirs)
   include(CTest)
   add_compile_options(-Wall -Wextra -Wpedantic -Wshadow $<$<BOOL:${ROPES_WERROR}>:-Werror>)
+endmacro()
+
+macro(ropes_find_streaming var what)
+  set(ROPES_WITH_DDS AUTO CACHE STRING "Build ${what} (Fast DDS): AUTO, ON or OFF")
+  string(TOUPPER "${ROPES_WITH_DDS}" _ropes_with_dds)
+  if(NOT _ropes_with_dds MATCHES "^(AUTO|ON|OFF)$")
+    message(FATAL_ERROR "ROPES_WITH_DDS is '${ROPES_WITH_DDS}'; expected AUTO, ON or OFF")
+  endif()
+  set(${var} FALSE)
+  if(NOT _ropes_with_dds STREQUAL "OFF")
+    find_package(ropes_msgs 0.1 CONFIG QUIET)
+    if(ropes_msgs_FOUND)
+      set(${var} TRUE)
+    elseif(_ropes_with_dds STREQUAL "ON")
+      message(FATAL_ERROR "ROPES_WITH_DDS=ON but ropes_msgs with Fast DDS was not found: "
+        "${ropes_msgs_NOT_FOUND_MESSAGE}")
+    endif()
+  endif()
+  message(STATUS "${PROJECT_NAME}: ${what} ${${var}}")
 endmacro()
 
 function(ropes_add_gtests target)

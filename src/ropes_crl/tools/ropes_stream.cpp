@@ -47,7 +47,7 @@ options:
   --frame-qos Q             sensor (default) or reliable_all: the QoS of the frame reader,
                             as the publisher of the frames uses
   --estimates N             exit after N estimates
-  --wait-for-subscribers N  wait until N readers of ropes/pose_estimates are matched first
+  --wait-for-subscribers N  wait until N (1 to 1000) readers of ropes/pose_estimates match
   --rate HZ                 --replay: rows a second (default: as fast as readers take them)
   --rows N                  --replay: the first N rows only
 The domain is ROPES_DDS_DOMAIN (default 0); ROPES_DDS_LOOPBACK=1 keeps to this host.
@@ -220,7 +220,7 @@ int run(int argc, char** argv) {
     else if (flag == "--rows")
       rows = parse_count(flag, value);
     else if (flag == "--wait-for-subscribers")
-      wait_for = static_cast<int>(parse_count(flag, value));
+      wait_for = ropes::core::parse_number<int>(flag, value, 1, 1000);
     else if (flag == "--rate")
       rate = parse_rate(flag, value);
     else if (flag == "--frame-qos") {
