@@ -17,29 +17,6 @@ namespace ropes::crl {
 namespace fs = std::filesystem;
 using nn::Shape;
 
-nlohmann::json Calibration::to_json() const {
-  return {{"joints", joints}, {"scale", scale}, {"offset", offset}};
-}
-
-Calibration Calibration::from_json(const nlohmann::json& j) {
-  Calibration c;
-  c.joints = detail::get_strings(j, "calibration", "joints");
-  for (const char* key : {"scale", "offset"}) {
-    const nlohmann::json& v = detail::field(j, "calibration", key);
-    std::vector<double>& out = std::string(key) == "scale" ? c.scale : c.offset;
-    if (!v.is_array() || v.size() != c.joints.size())
-      throw std::invalid_argument(std::string("calibration.") + key + ": expected " +
-                                  std::to_string(c.joints.size()) + " numbers, got " + v.dump());
-    for (const nlohmann::json& e : v) {
-      if (!e.is_number())
-        throw std::invalid_argument(std::string("calibration.") + key + ": expected numbers, got " +
-                                    v.dump());
-      out.push_back(e.get<double>());
-    }
-  }
-  return c;
-}
-
 struct Estimator::State {
   ExperimentConfig config;
   std::unique_ptr<Ae1> ae1;

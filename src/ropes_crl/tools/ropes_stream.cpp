@@ -4,8 +4,10 @@
 #include <ropes_core/dtype.hpp>
 #include <ropes_core/file_io.hpp>
 #include <ropes_core/json_text.hpp>
+#include <ropes_crl/calibration.hpp>
 #include <ropes_crl/dataset_version.hpp>
 #include <ropes_crl/estimator.hpp>
+#include <ropes_crl/run_directory.hpp>
 #include <ropes_msgs/dds.hpp>
 
 #include "frame_grouper.hpp"
@@ -29,8 +31,9 @@ using ropes::crl::stream::Clock;
 const char* const kUsage = R"(usage: ropes-stream --run RUN [options]
        ropes-stream --run RUN --replay DIR [options]
 
-Loads the Estimator of the trained run RUN (ropes-train's output; its calibration from
-RUN/calibration.json, written by ropes-eval, when there is one) and answers every ImageFrame
+Loads the Estimator of the trained run RUN (ropes-train's output) and its calibration (by
+default the calibration.json of RUN's latest evaluation by ropes-eval or ropes-run, which
+keep it beside the run, never in it) and answers every ImageFrame
 on ropes/image_frames with a PoseEstimate on ropes/pose_estimates. The cameras of one instant
 (one sequence number) may come in one frame or in several; an estimate is made once all the
 run's cameras are there. A frame of the wrong size, encoding or cameras is refused with a log
@@ -40,8 +43,11 @@ With --replay, reads the rows of the dataset in DIR instead (ropes-generate's ou
 publishes, per row, its JointState (ropes/joint_states) and its estimate, then exits.
 
 options:
-  --calibration FILE        the affine calibration (default RUN/calibration.json if present;
-                            without one, estimates carry latents and no angles)
+  --calibration FILE        the affine calibration (a ropes-eval calibration.json fitted for
+                            this run; default: the newest of RUN-eval/calibration.json,
+                            RUN-eval/report/calibration.json and, for ropes-run's OUT/run,
+                            OUT/report/calibration.json that records RUN; none: no
+                            calibration). Without one, estimates carry latents, no angles
   --run-id ID               the run id in the estimates (default: RUN's directory name, or
                             its parent's for ropes-run's OUT/run)
   --frame-qos Q             sensor (default) or reliable_all: the QoS of the frame reader,
@@ -135,18 +141,6 @@ class Node {
   double latency_s_ = 0;
 };
 
-ropes::crl::Calibration read_calibration(const fs::path& file) {
-  const nlohmann::json j = ropes::core::parse_json_or_discarded(
-      ropes::core::read_text_file(file, ropes::core::kMaxJsonFileBytes));
-  if (j.is_discarded())
-    throw std::runtime_error(file.string() + ": not valid JSON");
-  try {
-    return ropes::crl::Calibration::from_json(j);
-  } catch (const std::exception& e) {
-    throw std::runtime_error(file.string() + ": " + e.what());
-  }
-}
-
 int replay(Node& node, ropes::crl::Estimator& estimator, const ropes::core::DatasetReader& reader,
            msgs::Publisher<msgs::JointState>& joint_pub, const msgs::ShutdownSignals& signals,
            double rate, long long rows_limit) {
@@ -236,10 +230,24 @@ int run(int argc, char** argv) {
   if (run_dir.empty())
     throw UsageError("--run is required (see --help)");
   auto estimator = ropes::crl::Estimator::load(run_dir);
-  if (calibration.empty() && fs::exists(fs::path(run_dir) / "calibration.json"))
-    calibration = (fs::path(run_dir) / "calibration.json").string();
-  if (!calibration.empty())
-    estimator.set_calibration(read_calibration(calibration));
+  const auto run = ropes::crl::RunDirectory::open(run_dir);
+  if (calibration.empty()) {
+    std::vector<std::string> skipped;
+    if (const auto latest = ropes::crl::latest_calibration(run, &skipped))
+      calibration = latest->string();
+    for (const std::string& why : skipped)
+      std::fprintf(stderr, "ropes-stream: passed over %s\n", why.c_str());
+  }
+  if (!calibration.empty() && calibration != "none") {
+    const auto fit = ropes::crl::Calibration::read(calibration);
+    try {
+      fit.check_fits(run);
+    } catch (const std::invalid_argument& e) {
+      throw std::runtime_error(calibration + ": " + e.what());
+    }
+    estimator.set_calibration(fit);
+    std::fprintf(stderr, "ropes-stream: calibration %s\n", calibration.c_str());
+  }
   if (run_id.empty()) {
     // the directory's name; ropes-run's OUT/run is called by OUT's
     fs::path p = fs::absolute(run_dir).lexically_normal();

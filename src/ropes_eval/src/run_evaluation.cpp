@@ -66,7 +66,7 @@ AffineCalibration calibrate(const Eigen::VectorXd& x, const Eigen::VectorXd& y) 
 // on the calibration rows (joint k from latent k, and from every latent)
 MethodScores score_method(const std::string& name, const Eigen::MatrixXd& latents,
                           const Eigen::MatrixXd& angles, const std::vector<Eigen::Index>& cal,
-                          const std::vector<Eigen::Index>& test, nlohmann::json* fit = nullptr) {
+                          const std::vector<Eigen::Index>& test, crl::Calibration* fit = nullptr) {
   MethodScores s;
   s.method = name;
   const double nan = std::numeric_limits<double>::quiet_NaN();
@@ -86,8 +86,8 @@ MethodScores score_method(const std::string& name, const Eigen::MatrixXd& latent
     s.mse.push_back(calibration_mse(a, lt.col(k), at.col(k)));
     s.mse_all_latents.push_back(calibration_mse(fit_linear(lc, ac.col(k)), lt, at.col(k)));
     if (fit != nullptr) {
-      (*fit)["scale"].push_back(a.scale);
-      (*fit)["offset"].push_back(a.offset);
+      fit->scale.push_back(a.scale);
+      fit->offset.push_back(a.offset);
     }
   }
   try {
@@ -484,9 +484,9 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
     MethodSummary m;
     m.method = name;
     for (std::size_t r = 0; r < splits.size(); ++r) {
-      nlohmann::json fit = {{"joints", config.joints},
-                            {"scale", nlohmann::json::array()},
-                            {"offset", nlohmann::json::array()}};
+      crl::Calibration fit;
+      fit.joints = config.joints;
+      fit.run = crl::RunIdentity::of(run);
       m.repeats.push_back(
           score_method(name, *latents, angles, splits[r].calibration, splits[r].test, &fit));
       if (name.rfind("supervised_", 0) == 0)  // an angle estimate: its own error
@@ -667,7 +667,7 @@ nlohmann::json RunEvaluation::to_json() const {
             {"ldr_held_out_accuracy", nums(ldr_accuracy)},
             {"ldr_bayes_accuracy", nums(bayes_accuracy)}}},
           {"paper", {{"mcc", nums(paper_mcc)}, {"mse", nums(paper_mse)}}},
-          {"calibration", calibration},
+          {"calibration", calibration.to_json()},
           {"notes",
            "each repeat draws calibration_samples and disjoint test_samples from the "
            "observational samples; a method's numbers are the mean over the repeats (*_std: the "

@@ -6,6 +6,8 @@
 
 #include <nlohmann/json.hpp>
 #include <ropes_core/sha256.hpp>
+#include <ropes_crl/calibration.hpp>
+#include <ropes_crl/run_directory.hpp>
 #include <ropes_eval/run_evaluation.hpp>
 #include <ropes_nn/build_info.hpp>
 
@@ -56,6 +58,20 @@ std::string bytes_of(const fs::path& p) {
   std::stringstream s;
   s << in.rdbuf();
   return s.str();
+}
+
+// where ropes-eval writes a run's evaluation by default: beside the run, never in it
+fs::path eval_dir(const fs::path& run) {
+  return ropes::crl::default_evaluation_dir(run);
+}
+
+// every entry under `dir`, a file with its SHA-256: what a directory holds, to compare
+std::map<std::string, std::string> listing(const fs::path& dir) {
+  std::map<std::string, std::string> out;
+  for (const fs::directory_entry& e : fs::recursive_directory_iterator(dir))
+    out[fs::relative(e.path(), dir).string()] =
+        e.is_regular_file() ? ropes::core::sha256_file(e.path()) : "(directory)";
+  return out;
 }
 
 nlohmann::json json_of(const fs::path& p) {
@@ -240,19 +256,34 @@ TEST_F(Pipeline, TinyRunIsDeterministicPinnedAndLearnsTheSparsityPattern) {
   for (const char* f : kWeights)
     EXPECT_EQ(bytes_of(a / f), bytes_of(b / f)) << f << " differs between two identical runs";
 
-  // the tiny test set has 40 observational samples: 3 repeats of 20 + 20
+  // the tiny test set has 40 observational samples: 3 repeats of 20 + 20; the evaluation
+  // goes beside the run (RUN-eval), and the run directory is as it was, to the byte
+  const std::map<std::string, std::string> before = listing(a);
   const Output e = run(kEval + " --run " + a.string() + " --data " + (dir_ / "data1").string() +
                        " --probe-steps 100 --repeats 3 --calibration-samples 20 --test-samples 20");
   ASSERT_EQ(e.rc, 0) << e.text;
+  EXPECT_EQ(listing(a), before);
+  EXPECT_NE(e.text.find("calibration: " + (eval_dir(a) / "calibration.json").string()),
+            std::string::npos)
+      << e.text;
+  // an --out inside the run is refused before anything is computed or written
+  const Output inside = run(kEval + " --run " + a.string() + " --data " +
+                            (dir_ / "data1").string() + " --out " + (a / "x.json").string());
+  EXPECT_EQ(inside.rc, 2) << inside.text;
+  EXPECT_NE(inside.text.find("ropes-eval: error: --out " + (a / "x.json").string() +
+                             " is inside the run directory " + a.string()),
+            std::string::npos)
+      << inside.text;
+  EXPECT_EQ(listing(a), before);
   EXPECT_NE(e.text.find("| panda_joint6 |"), std::string::npos) << e.text;
   EXPECT_NE(e.text.find("3 repeats of 20 calibration and 20 test samples (of 40 observational"),
             std::string::npos)
       << e.text;
-  const nlohmann::json results = json_of(a / "results.json");
+  const nlohmann::json results = json_of(eval_dir(a) / "results.json");
   EXPECT_EQ(results["methods"]["ropes"]["mcc"].size(), 3u);
   // results.md: the paper's Table 1 layout (six joints, the ones not intervened on "--"),
   // the paper's row, the difference, the baselines
-  const std::string md = bytes_of(a / "results.md");
+  const std::string md = bytes_of(eval_dir(a) / "results.md");
   EXPECT_NE(md.find("| setup | panda_joint1 MCC | MSE | panda_joint2 MCC |"), std::string::npos)
       << md;
   EXPECT_NE(md.find("| this run (1c) | -- | -- | "), std::string::npos) << md;
@@ -266,7 +297,13 @@ TEST_F(Pipeline, TinyRunIsDeterministicPinnedAndLearnsTheSparsityPattern) {
   for (const nlohmann::json& r : results["methods"]["ropes"]["repeats"])
     sum += r["mcc"][0].get<double>();
   EXPECT_NEAR(results["methods"]["ropes"]["mcc"][0].get<double>(), sum / 3, 1e-12);
-  EXPECT_TRUE(fs::exists(a / "calibration.json"));
+  // the calibration records the run it was fitted for, and fits it
+  const auto fit = ropes::crl::Calibration::read(eval_dir(a) / "calibration.json");
+  ASSERT_TRUE(fit.run.has_value());
+  EXPECT_EQ(fit.run->config, "1c-tiny");
+  fit.check_fits(ropes::crl::RunDirectory::open(a));
+  EXPECT_EQ(ropes::crl::latest_calibration(ropes::crl::RunDirectory::open(a)),
+            eval_dir(a) / "calibration.json");
   // provenance: the build that trained and the one that evaluated, here the same
   const nlohmann::json run_json = json_of(a / "run.json");
   EXPECT_EQ(run_json["provenance"]["isa_level"], results["provenance"]["evaluation"]["isa_level"]);
@@ -293,8 +330,9 @@ TEST_F(Pipeline, TinyRunIsDeterministicPinnedAndLearnsTheSparsityPattern) {
                    " vs " + run_json["provenance"]["isa_level"].get<std::string>() + ")"),
       std::string::npos)
       << ec.text;
-  EXPECT_NE(bytes_of(c / "results.md").find("- **trained under another build** (isa_level: "),
-            std::string::npos);
+  EXPECT_NE(
+      bytes_of(eval_dir(c) / "results.md").find("- **trained under another build** (isa_level: "),
+      std::string::npos);
   // opened again by this build, twice (the run is complete: nothing is trained): run.json
   // records this build once beside the first, whatever the number of resumes
   for (int i = 0; i < 2; ++i) {
@@ -357,7 +395,7 @@ TEST_F(Pipeline, TinyRunIsDeterministicPinnedAndLearnsTheSparsityPattern) {
     for (const char* f : kWeights)
       hashes += ropes::core::sha256_file(run_dir / f);
     const std::string weights = ropes::core::sha256_hex(hashes.data(), hashes.size());
-    const nlohmann::json r = json_of(run_dir / "results.json");
+    const nlohmann::json r = json_of(eval_dir(run_dir) / "results.json");
     if (std::getenv("ROPES_PRINT_GOLDEN") != nullptr) {
       std::printf("golden %s: ae1 %.9g ae2 %.9g weights %s\n", golden->level, ae1_loss, ae2_loss,
                   weights.c_str());
@@ -437,7 +475,7 @@ TEST_F(Pipeline, SameBytesWhateverTheCpuReportsAndAtAnyThreadCount) {
             "--test-samples 20 --threads " +
             v.threads);
     ASSERT_EQ(e.rc, 0) << v.name << ": " << e.text;
-    methods.push_back(json_of(out / "results.json")["methods"]);
+    methods.push_back(json_of(eval_dir(out) / "results.json")["methods"]);
     if (methods.size() == 1)
       continue;
     const fs::path here = dir_ / ("machines_" + variants[0].name);
@@ -616,7 +654,7 @@ TEST_F(Pipeline, DatasetsOfTheOldStandardDeviationReadingAreRefused) {
   EXPECT_EQ(o.rc, 1) << o.text;
   EXPECT_NE(o.text.find((old_test / "manifest.json").string() + ": " + why), std::string::npos)
       << o.text;
-  EXPECT_FALSE(fs::exists(good / "results.json"));
+  EXPECT_FALSE(fs::exists(eval_dir(good) / "results.json"));
 
   // a run whose training set is of the old reading: not evaluated on a new test set, not
   // screened, and its suites get no test set
@@ -634,7 +672,7 @@ TEST_F(Pipeline, DatasetsOfTheOldStandardDeviationReadingAreRefused) {
   EXPECT_EQ(o.rc, 1) << o.text;
   EXPECT_NE(o.text.find((old_train / "manifest.json").string() + ": " + why), std::string::npos)
       << o.text;
-  EXPECT_FALSE(fs::exists(good / "screen.json"));
+  EXPECT_FALSE(fs::exists(eval_dir(good) / "screen.json"));
   o = run(kEval + " --run " + good.string() + " --data-cache " + (dir_ / "old_cache").string() +
           " --suite id --repeats 1 --calibration-samples 20 --test-samples 20 --out " +
           (dir_ / "old_report").string());
@@ -668,7 +706,7 @@ TEST_F(Pipeline, StagesStopBeforeAe2AndScreeningReadsTheCode) {
             std::string::npos)
       << o.text;
   EXPECT_NE(o.text.find("| panda_joint6 | "), std::string::npos) << o.text;
-  const nlohmann::json screen = json_of(staged / "screen.json");
+  const nlohmann::json screen = json_of(eval_dir(staged) / "screen.json");
   EXPECT_EQ(screen["format"], "ropes-eval-screen");
   ASSERT_EQ(screen["probe_mlp_r2"].size(), 3u) << screen.dump();
   for (std::size_t k = 0; k < 3; ++k) {
@@ -679,7 +717,7 @@ TEST_F(Pipeline, StagesStopBeforeAe2AndScreeningReadsTheCode) {
         1e-12);
   }
   EXPECT_NEAR(screen["bayes_accuracy"][0].get<double>(), 0.83191037, 1e-6);  // the paper's 1C
-  EXPECT_TRUE(fs::exists(staged / "screen.md"));
+  EXPECT_TRUE(fs::exists(eval_dir(staged) / "screen.md"));
 
   // not a finished run: no evaluation by the protocol yet
   o = run(kEval + " --run " + staged.string() + " --data " + (dir_ / "data1").string());
@@ -701,7 +739,7 @@ TEST_F(Pipeline, StagesStopBeforeAe2AndScreeningReadsTheCode) {
   EXPECT_FALSE(fs::exists(ae1_only / "ldr.panda_joint2.safetensors"));
   o = run(kEval + " --run " + ae1_only.string() + " --screen --probe-steps 0");
   ASSERT_EQ(o.rc, 0) << o.text;
-  const nlohmann::json only = json_of(ae1_only / "screen.json");
+  const nlohmann::json only = json_of(eval_dir(ae1_only) / "screen.json");
   EXPECT_TRUE(only["ldr_accuracy"][0].is_null()) << only.dump();
   EXPECT_TRUE(only["probe_mlp_r2"].empty()) << only.dump();
   EXPECT_EQ(only["probe_linear_r2"], screen["probe_linear_r2"]);  // the same AE1 and split
@@ -1124,6 +1162,10 @@ TEST_F(Pipeline, RopesRunResumesInsideItsStagesAndEndsWithTheTable) {
   EXPECT_NE(second.text.find(report_line), std::string::npos) << second.text;
   EXPECT_TRUE(fs::exists(out / "report" / "report.html"));
   EXPECT_TRUE(fs::exists(out / "report" / "results.md"));
+  // the id suite's calibration is in the report; ropes-stream's default finds it for OUT/run
+  EXPECT_EQ(ropes::crl::latest_calibration(ropes::crl::RunDirectory::open(out / "run")),
+            out / "report" / "calibration.json");
+  EXPECT_FALSE(fs::exists(out / "run" / "calibration.json"));
 
   const Output third = run(command);
   ASSERT_EQ(third.rc, 0) << third.text;

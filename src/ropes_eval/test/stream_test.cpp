@@ -4,7 +4,9 @@
 // Witness for the estimates: the Estimator run offline in this process on the very bytes
 // each frame carried.
 #include <ropes_core/dataset.hpp>
+#include <ropes_crl/calibration.hpp>
 #include <ropes_crl/estimator.hpp>
+#include <ropes_crl/run_directory.hpp>
 #include <ropes_eval/correlation.hpp>
 #include <ropes_msgs/dds.hpp>
 
@@ -67,21 +69,23 @@ fs::path tiny_run(const std::string& cameras) {
             0)
       << text_of(kDir / "train.log");
   auto estimator = ropes::crl::Estimator::load(run);
-  nlohmann::json c = {{"joints", estimator.joints()},
-                      {"scale", nlohmann::json::array()},
-                      {"offset", nlohmann::json::array()}};
+  // where ropes-eval writes it (RUN-eval, beside the run): ropes-stream finds it by default
+  ropes::crl::Calibration c;
+  c.joints = estimator.joints();
+  c.run = ropes::crl::RunIdentity::of(ropes::crl::RunDirectory::open(run));
   for (std::size_t k = 0; k < estimator.joints().size(); ++k) {
-    c["scale"].push_back(1.5 + 0.1 * static_cast<double>(k));
-    c["offset"].push_back(-0.2 * static_cast<double>(k));
+    c.scale.push_back(1.5 + 0.1 * static_cast<double>(k));
+    c.offset.push_back(-0.2 * static_cast<double>(k));
   }
-  std::ofstream(run / "calibration.json") << c.dump(2) << "\n";
+  fs::create_directories(ropes::crl::default_evaluation_dir(run));
+  c.write(ropes::crl::default_evaluation_dir(run) / "calibration.json");
   return run;
 }
 
 ropes::crl::Estimator offline(const fs::path& run) {
   auto estimator = ropes::crl::Estimator::load(run);
-  const nlohmann::json c = nlohmann::json::parse(text_of(run / "calibration.json"));
-  estimator.set_calibration(ropes::crl::Calibration::from_json(c));
+  estimator.set_calibration(
+      ropes::crl::Calibration::read(ropes::crl::default_evaluation_dir(run) / "calibration.json"));
   return estimator;
 }
 
@@ -399,6 +403,46 @@ TEST(StreamingNode, BadCommandLinesAndRunsAreRefusedWithAClearMessage) {
   ::setenv("ROPES_DDS_DOMAIN", "999", 1);
   EXPECT_EQ(run_to_end({ROPES_ECHO_EXE, "pose_estimates"}, kDir / "cli.log"), 1);
   EXPECT_NE(text_of(kDir / "cli.log").find("ROPES_DDS_DOMAIN is '999'"), std::string::npos);
+}
+
+// ropes-stream's calibration: the run's latest evaluation's by default (tiny_run puts one in
+// RUN-eval, and the Streaming tests compare the angles); one fitted for another run is
+// refused, naming both runs; "none" streams latents only
+TEST(StreamingNode, ACalibrationOfAnotherRunIsRefused) {
+  const fs::path run = tiny_run("1c");
+  auto fit =
+      ropes::crl::Calibration::read(ropes::crl::default_evaluation_dir(run) / "calibration.json");
+  ASSERT_TRUE(fit.run.has_value());
+  fit.run->seed += 1;
+  const fs::path other = kDir / "other-run-calibration.json";
+  fit.write(other);
+  const fs::path log = kDir / "calibration.log";
+  EXPECT_EQ(run_to_end({ROPES_STREAM_EXE, "--run", run.string(), "--calibration", other.string(),
+                        "--estimates", "1"},
+                       log),
+            1);
+  EXPECT_NE(text_of(log).find("ropes-stream: error: " + other.string() +
+                              ": the calibration was fitted for another run (config 1c-tiny"),
+            std::string::npos)
+      << text_of(log);
+  // the replay of two rows, with no calibration: latents, no angles
+  const fs::path data = kDir / "data-1c";
+  EXPECT_EQ(run_to_end({ROPES_STREAM_EXE, "--run", run.string(), "--calibration", "none",
+                        "--replay", data.string(), "--rows", "2"},
+                       log),
+            0)
+      << text_of(log);
+  EXPECT_NE(text_of(log).find("uncalibrated: latents only"), std::string::npos) << text_of(log);
+  EXPECT_EQ(
+      run_to_end(
+          {ROPES_STREAM_EXE, "--run", run.string(), "--replay", data.string(), "--rows", "2"}, log),
+      0)
+      << text_of(log);
+  EXPECT_NE(
+      text_of(log).find("ropes-stream: calibration " +
+                        (ropes::crl::default_evaluation_dir(run) / "calibration.json").string()),
+      std::string::npos)
+      << text_of(log);
 }
 
 std::set<std::string> shm_entries() {

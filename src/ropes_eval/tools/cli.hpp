@@ -3,6 +3,7 @@
 // usage errors, number flags and run_main: ropes_core/cli.hpp.
 #include <ropes_core/cli.hpp>
 #include <ropes_core/file_io.hpp>
+#include <ropes_crl/calibration.hpp>
 
 #include <algorithm>
 #include <cstdint>
@@ -21,6 +22,23 @@ using core::UsageError;
 inline void write_text(const fs::path& path, const std::string& text) {
   ropes::core::write_file_atomically(path, reinterpret_cast<const std::uint8_t*>(text.data()),
                                      text.size());
+}
+
+/// Where an evaluation of the run in `run_dir` writes: `out` when given, else `name` in the
+/// run's default evaluation directory (crl::default_evaluation_dir: RUN-eval). UsageError
+/// when `out` lies inside the run directory: ropes_eval never writes into a run.
+inline fs::path evaluation_output(const std::string& run_dir, const std::string& out,
+                                  const fs::path& name) {
+  if (out.empty())
+    return crl::default_evaluation_dir(run_dir) / name;
+  const fs::path run = fs::weakly_canonical(fs::absolute(run_dir));
+  const fs::path target = fs::weakly_canonical(fs::absolute(out));
+  const auto [r, t] = std::mismatch(run.begin(), run.end(), target.begin(), target.end());
+  if (r == run.end())
+    throw UsageError("--out " + out + " is inside the run directory " + run_dir +
+                     "; an evaluation is written apart from the run (default: " +
+                     (crl::default_evaluation_dir(run_dir) / name).string() + ")");
+  return out;
 }
 
 inline std::vector<std::string> split_list(const std::string& flag, const std::string& text) {

@@ -40,11 +40,14 @@ joint the mean and standard deviation over the repeats of the MCC (|Pearson| of 
 and joint k) and of the MSE in rad^2 of the affine calibration of joint k from latent k,
 beside the paper's numbers, the best-assignment MCC, Spearman, the calibration from every
 latent, the lambda = 0 autoencoder, the LDR logit and supervised probes from AE1's code.
-Writes RUN/results.json (or --out FILE), results.md beside it (the tables laid out like the
-paper's), and RUN/calibration.json (repeat 0's affine fit, for the Estimator).
+Writes RUN-eval/results.json (or --out FILE), results.md beside it (the tables laid out like
+the paper's) and calibration.json beside it (repeat 0's affine fit, for the Estimator and
+ropes-stream). Nothing is written into RUN: RUN-eval is the directory beside it, named after
+it (runs/a -> runs/a-eval), and an --out inside RUN is refused.
 
 With --suite, evaluates the run on each suite named (comma-separated) and writes
-REPORT/results.json, REPORT/results.md and REPORT/report.html (default REPORT: RUN/report):
+REPORT/results.json, results.md, report.html and, with the id suite, calibration.json
+(default REPORT: RUN-eval/report):
   id         a test set of the training config with another seed (--test-seed)
   ood        the paper's OOD test set (its OOD observational table; two cameras only)
   causal     the causal SEM's test set (two cameras only)
@@ -59,12 +62,13 @@ will do; a finished run too): per joint, the share of the angle's variance (R^2)
 supervised probe from AE1's code explains, fitted on 80 % of the training set's anchors and
 scored on the rest (a linear and an MLP probe; these labels serve the diagnostic only), and
 the LDR's held-out accuracy against the Bayes accuracy of its interventions. Prints the
-table and writes RUN/screen.json (or --out FILE) and screen.md beside it.
+table and writes RUN-eval/screen.json (or --out FILE) and screen.md beside it.
 
 options:
-  --out FILE                results file (default RUN/results.json; the .md beside it);
-                            with --suite the report directory (default RUN/report); with
-                            --screen the screening's file (default RUN/screen.json)
+  --out FILE                results file (default RUN-eval/results.json; the .md and
+                            calibration.json beside it); with --suite the report directory
+                            (default RUN-eval/report); with --screen the screening's file
+                            (default RUN-eval/screen.json)
   --screen                  screen AE1 and the LDRs (see above)
   --suite LIST              the suites (see above)
   --data-cache DIR          where test sets are generated (default $ROPES_DATA_CACHE, else
@@ -177,8 +181,10 @@ int run(int argc, char** argv) {
     ropes::eval::ScreeningOptions so;
     so.probe_steps = options.probe_steps;
     so.seed = options.seed;
+    const fs::path results = tools::evaluation_output(run_dir, out, "screen.json");
     const ropes::eval::Screening sc = ropes::eval::screen_run(run_dir, so);
-    const fs::path results = out.empty() ? fs::path(run_dir) / "screen.json" : fs::path(out);
+    if (results.has_parent_path())
+      fs::create_directories(results.parent_path());
     write_text(results, sc.to_json().dump(2) + "\n");
     fs::path markdown = results;
     markdown.replace_extension(".md");
@@ -199,17 +205,20 @@ int run(int argc, char** argv) {
               << "\nreport: " << (outcome.report_dir / "report.html").string() << "\n";
     return 0;
   }
+  const fs::path results = tools::evaluation_output(run_dir, out, "results.json");
   const ropes::eval::RunEvaluation ev = ropes::eval::evaluate_run(run_dir, data, options);
-  const fs::path results = out.empty() ? fs::path(run_dir) / "results.json" : fs::path(out);
+  if (results.has_parent_path())
+    fs::create_directories(results.parent_path());
   write_text(results, ev.to_json().dump(2) + "\n");
   fs::path markdown = results;
   markdown.replace_extension(".md");
   if (markdown == results)  // --out something.md: keep both
     markdown += ".md";
   write_text(markdown, ev.markdown());
-  write_text(fs::path(run_dir) / "calibration.json", ev.calibration.dump(2) + "\n");
+  const fs::path calibration = results.parent_path() / "calibration.json";
+  ev.calibration.write(calibration);
   std::cout << ev.table() << "results: " << results.string() << " and " << markdown.string()
-            << "\n";
+            << "\ncalibration: " << calibration.string() << "\n";
   return 0;
 }
 

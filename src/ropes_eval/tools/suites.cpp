@@ -123,7 +123,7 @@ SuiteOutcome run_suites(const std::string& run_dir, const std::string& data, con
                         const SuiteArgs& args, const std::function<void(const std::string&)>& log) {
   check_suites(args.suites);
   const std::set<std::string> wanted(args.suites.begin(), args.suites.end());
-  const fs::path report_dir = out.empty() ? fs::path(run_dir) / "report" : fs::path(out);
+  const fs::path report_dir = evaluation_output(run_dir, out, "report");
   const RunFacts facts = run_facts(run_dir);
   // a run trained on a dataset of the old TN(mean, x) reading: refused before anything runs
   ropes::crl::require_run_of_current_sim_dataset(run_dir);
@@ -304,7 +304,7 @@ SuiteOutcome run_suites(const std::string& run_dir, const std::string& data, con
   write_text(report_dir / "report.html", ropes::eval::html_report(report, run_dir, images));
   const ropes::eval::SuiteResult* id = report.find("id");
   if (id != nullptr)
-    write_text(fs::path(run_dir) / "calibration.json", id->evaluation.calibration.dump(2) + "\n");
+    id->evaluation.calibration.write(report_dir / "calibration.json");
   SuiteOutcome outcome;
   outcome.report_dir = report_dir;
   outcome.report = std::move(report);

@@ -6,10 +6,12 @@
 /// trainer.hpp). Latent k of the estimate is joint k of the run's config (config.joints):
 /// in per_joint mode latent k of joint k's AE2, in joint mode latent k of the one AE2. The
 /// latents identify each joint up to a monotonic map (the paper: close to affine), so
-/// angles need a Calibration, fitted on a few labelled samples (ropes-eval fits one).
+/// angles need a Calibration (calibration.hpp), fitted on a few labelled samples (ropes-eval
+/// fits one).
 ///
 /// Not thread-safe: one Estimator per thread. Cost per frame at the `small` preset: one AE1
 /// encoder pass and one AE2 encoder pass per joint (see ropes_crl_bench).
+#include "ropes_crl/calibration.hpp"
 #include "ropes_crl/experiment_config.hpp"
 #include "ropes_crl/networks.hpp"
 
@@ -22,16 +24,6 @@
 #include <vector>
 
 namespace ropes::crl {
-
-/// angle_k = scale[k] * latent_k + offset[k] (the paper's affine calibration of joint k
-/// from latent k).
-struct Calibration {
-  std::vector<std::string> joints;
-  std::vector<double> scale, offset;
-  nlohmann::json to_json() const;
-  /// Throws std::invalid_argument naming the field.
-  static Calibration from_json(const nlohmann::json& j);
-};
 
 class Estimator {
  public:

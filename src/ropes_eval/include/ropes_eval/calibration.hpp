@@ -8,14 +8,14 @@
 /// Inputs are never modified. A constant joint, or a constant latent in the one-latent fit,
 /// is an error (std::invalid_argument naming it), not a NaN.
 
+#include <ropes_crl/calibration.hpp>
+
 #include <Eigen/Core>
 
 namespace ropes::eval {
 
-/// joint ~ scale * latent + offset
-struct AffineCalibration {
-  double scale = 0, offset = 0;
-};
+/// joint ~ scale * latent + offset: ropes_crl's type, the one a run's Calibration holds
+using crl::AffineCalibration;
 
 /// Least squares of y on [x, 1], n >= 2 samples. Throws std::invalid_argument when the
 /// lengths differ, n < 2, a value is not finite, or x or y is constant (naming which).

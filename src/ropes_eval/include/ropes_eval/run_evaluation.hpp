@@ -15,6 +15,8 @@
 /// RUN/codes.npy), and the diagnostics of repeat 0 (supervised probes from Y to each joint — a
 /// linear one and a small MLP, fitted on its calibration samples — and the LDR's held-out accuracy
 /// against Bayes). Labels (the angles) are read here only.
+#include <ropes_crl/calibration.hpp>
+
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
@@ -133,7 +135,8 @@ struct RunEvaluation {
   std::vector<double> probe_linear_mse, probe_mlp_mse, angle_variance;
   std::vector<double> ldr_accuracy, bayes_accuracy;
   std::vector<double> paper_mcc, paper_mse;  ///< NaN where the paper gives none
-  nlohmann::json calibration;  ///< ropes' affine fit of repeat 0 (an Estimator Calibration)
+  /// ROPES' affine fit of repeat 0, for the Estimator; records the run it was fitted for
+  crl::Calibration calibration;
   /// {"training": run.json's provenance (null for a run that recorded none), "evaluation":
   /// this process's} (ropes_nn/build_info.hpp)
   nlohmann::json provenance;
