@@ -14,7 +14,7 @@
 #include <cstdlib>
 #include <vector>
 
-#include "frame_grouper.hpp"
+#include <ropes_crl/frame_grouper.hpp>
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using namespace ropes::crl::stream;

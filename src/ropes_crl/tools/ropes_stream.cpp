@@ -10,7 +10,7 @@
 #include <ropes_crl/run_directory.hpp>
 #include <ropes_msgs/dds.hpp>
 
-#include "frame_grouper.hpp"
+#include <ropes_crl/frame_grouper.hpp>
 
 #include <cmath>
 #include <cstdio>
