@@ -59,6 +59,11 @@ if grep -qiE 'ropes_sim|osmesa' "$link"; then
   exit 1
 fi
 
+echo "== consumer: the pipeline API (ropes_eval::pipeline) runs the main job and the suites"
+"$work/ok/ropes_pipeline_consumer" "$work/pipeline" > "$work/pipeline.out" 2>&1 \
+  || { cat "$work/pipeline.out"; echo "FAIL: the pipeline consumer" >&2; exit 1; }
+grep "^pipeline consumer" "$work/pipeline.out"
+
 echo "== consumer: find_package(ropes_nn 1.0) must fail with CMake's version message"
 if cmake -S "$here/consumer" -B "$work/bad" -DROPES_NN_VERSION=1.0 > "$work/bad.log" 2>&1; then
   cat "$work/bad.log"

@@ -5,6 +5,7 @@
 #include <ropes_core/json_text.hpp>
 #include <ropes_core/sha256.hpp>
 
+#include <algorithm>
 #include <stdexcept>
 #include <system_error>
 
@@ -139,6 +140,18 @@ fs::path default_evaluation_dir(const fs::path& run_dir) {
     throw std::invalid_argument("a run directory cannot be " + run_dir.string() +
                                 " (its evaluation goes beside it)");
   return dir.parent_path() / (dir.filename().string() + "-eval");
+}
+
+fs::path evaluation_output(const fs::path& run_dir, const fs::path& out, const fs::path& name) {
+  if (out.empty())
+    return default_evaluation_dir(run_dir) / name;
+  const fs::path run = fs::weakly_canonical(fs::absolute(run_dir));
+  const fs::path target = fs::weakly_canonical(fs::absolute(out));
+  if (std::mismatch(run.begin(), run.end(), target.begin(), target.end()).first == run.end())
+    throw std::invalid_argument(out.string() + " is inside the run directory " + run_dir.string() +
+                                "; an evaluation is written apart from the run (default: " +
+                                (default_evaluation_dir(run_dir) / name).string() + ")");
+  return out;
 }
 
 std::vector<fs::path> calibration_candidates(const RunDirectory& run) {

@@ -21,7 +21,7 @@
 #include <vector>
 
 #include "../test/child_process.hpp"
-#include "../tools/test_data.hpp"
+#include "ropes_eval/test_data.hpp"
 
 namespace {
 
@@ -174,8 +174,8 @@ int run(int argc, char** argv) {
   for (const std::string& r : runs) {
     auto estimator = ropes::crl::Estimator::load(r);
     const auto& c = estimator.config();
-    const auto config = ropes::sim::DatasetConfig::load(
-        ropes::eval::tools::installed_dataset_config(c.dataset_config));
+    const auto config =
+        ropes::sim::DatasetConfig::load(ropes::eval::installed_dataset_config(c.dataset_config));
     std::printf("run %s: %s, %lld camera(s) %lldx%lld, %zu joints (dataset config %s)\n", r.c_str(),
                 c.name.c_str(), static_cast<long long>(c.cameras),
                 static_cast<long long>(c.image_size), static_cast<long long>(c.image_size),

@@ -4,6 +4,7 @@
 #include <ropes_core/cli.hpp>
 #include <ropes_core/file_io.hpp>
 #include <ropes_crl/calibration.hpp>
+#include <ropes_eval/suites.hpp>
 
 #include <algorithm>
 #include <cstdint>
@@ -24,21 +25,14 @@ inline void write_text(const fs::path& path, const std::string& text) {
                                      text.size());
 }
 
-/// Where an evaluation of the run in `run_dir` writes: `out` when given, else `name` in the
-/// run's default evaluation directory (crl::default_evaluation_dir: RUN-eval). UsageError
-/// when `out` lies inside the run directory: ropes_eval never writes into a run.
+/// crl::evaluation_output, an --out inside the run a usage error.
 inline fs::path evaluation_output(const std::string& run_dir, const std::string& out,
                                   const fs::path& name) {
-  if (out.empty())
-    return crl::default_evaluation_dir(run_dir) / name;
-  const fs::path run = fs::weakly_canonical(fs::absolute(run_dir));
-  const fs::path target = fs::weakly_canonical(fs::absolute(out));
-  const auto [r, t] = std::mismatch(run.begin(), run.end(), target.begin(), target.end());
-  if (r == run.end())
-    throw UsageError("--out " + out + " is inside the run directory " + run_dir +
-                     "; an evaluation is written apart from the run (default: " +
-                     (crl::default_evaluation_dir(run_dir) / name).string() + ")");
-  return out;
+  try {
+    return crl::evaluation_output(run_dir, out, name);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--out ") + e.what());
+  }
 }
 
 inline std::vector<std::string> split_list(const std::string& flag, const std::string& text) {
@@ -54,6 +48,17 @@ inline std::vector<std::string> split_list(const std::string& flag, const std::s
     if (comma == std::string::npos)
       break;
     start = comma + 1;
+  }
+  return out;
+}
+
+/// --suite's value: suites, comma-separated (ropes::eval::check_suites)
+inline std::vector<std::string> parse_suites(const std::string& flag, const std::string& value) {
+  std::vector<std::string> out = split_list(flag, value);
+  try {
+    check_suites(out);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(flag + ": " + e.what());
   }
   return out;
 }

@@ -5,6 +5,7 @@
 #include <ropes_eval/html_report.hpp>
 #include <ropes_eval/run_evaluation.hpp>
 #include <ropes_eval/screening.hpp>
+#include <ropes_eval/suites.hpp>
 #include <ropes_eval/supervised.hpp>
 #include <ropes_nn/parallel.hpp>
 #include <ropes_sim/renderer.hpp>
@@ -19,7 +20,7 @@
 #include <string>
 #include <vector>
 
-#include "suites.hpp"
+#include "cli.hpp"
 #ifdef ROPES_EVAL_LIVE
 #include "live.hpp"
 #endif
@@ -96,7 +97,8 @@ int run(int argc, char** argv) {
   std::string run_dir, data, out;
   int threads = 1;
   ropes::eval::RunEvaluationOptions options;
-  tools::SuiteArgs suite_args;
+  ropes::eval::SuiteOptions suite_args;
+  suite_args.suites.clear();
   bool screen = false;
   if (argc > 1 && std::string(argv[1]) == "--live") {
 #ifdef ROPES_EVAL_LIVE
@@ -137,14 +139,12 @@ int run(int argc, char** argv) {
     else if (flag == "--threads")
       threads = parse_number<int>(flag, value);
     else if (flag == "--suite") {
-      suite_args.suites = split_list(flag, value);
-      tools::check_suites(suite_args.suites);
+      suite_args.suites = tools::parse_suites(flag, value);
     } else if (flag == "--data-cache")
       suite_args.cache = value;
-    else if (flag == "--test-seed") {
+    else if (flag == "--test-seed")
       suite_args.test_seed = parse_number<std::uint64_t>(flag, value);
-      suite_args.have_test_seed = true;
-    } else if (flag == "--occlusion-sizes") {
+    else if (flag == "--occlusion-sizes") {
       suite_args.occlusion_sizes.clear();
       for (const std::string& v : split_list(flag, value)) {
         const auto size = parse_number<std::int64_t>(flag, v);
@@ -196,8 +196,12 @@ int run(int argc, char** argv) {
     return 0;
   }
   if (!suite_args.suites.empty()) {
-    const tools::SuiteOutcome outcome = tools::run_suites(
-        run_dir, data, out, threads, options, suite_args,
+    suite_args.data = data;
+    suite_args.out = tools::evaluation_output(run_dir, out, "report");
+    suite_args.threads = threads;
+    suite_args.evaluation = options;
+    const ropes::eval::SuiteOutcome outcome = ropes::eval::run_suites(
+        run_dir, suite_args,
         [](const std::string& line) { std::cout << "ropes-eval: " << line << std::endl; });
     std::cout << outcome.report.table()
               << "results: " << (outcome.report_dir / "results.json").string() << " and "

@@ -7,6 +7,7 @@
 #include <system_error>
 
 #include "json_config.hpp"
+#include "ropes_core/package_share.hpp"
 #include "ropes_core/plain_name.hpp"
 #include "ropes_sim/intervention_sampler.hpp"
 
@@ -185,6 +186,21 @@ std::string DatasetConfig::to_json() const {
                {"anchors", anchors},
                {"anchors_per_shard", anchors_per_shard}};
   return j.dump();
+}
+
+std::filesystem::path installed_dataset_configs_dir() {
+  return core::find_package_share("ropes_sim", "datasets", ROPES_SIM_INSTALL_SHARE_DIR) /
+         "datasets";
+}
+
+std::filesystem::path find_dataset_config(const std::string& name_or_path) {
+  if (regular_file(name_or_path))
+    return name_or_path;
+  // a name may come from a manifest someone else wrote: never a path out of the directory
+  if (!core::is_plain_name(name_or_path))
+    return {};
+  const std::filesystem::path p = installed_dataset_configs_dir() / (name_or_path + ".json");
+  return regular_file(p) ? p : std::filesystem::path();
 }
 
 }  // namespace ropes::sim

@@ -6,7 +6,7 @@
 #include <string>
 
 #include "ropes_core/cli.hpp"
-#include "ropes_core/package_share.hpp"
+#include "ropes_sim/dataset_config.hpp"
 
 namespace ropes::sim::tools {
 
@@ -15,17 +15,15 @@ namespace fs = std::filesystem;
 using core::parse_number;
 using core::UsageError;
 
-// a config given by name is looked for among the installed ones (core::find_package_share)
+// a config given by name is looked for among the installed ones (find_dataset_config)
 inline fs::path find_config(const std::string& value) {
-  if (fs::is_regular_file(value))
-    return value;
-  const fs::path dir =
-      core::find_package_share("ropes_sim", "datasets", ROPES_SIM_INSTALL_SHARE_DIR) / "datasets";
-  if (fs::is_regular_file(dir / (value + ".json")))
-    return dir / (value + ".json");
-  throw UsageError("--config '" + value +
-                   "' is neither a file nor an installed config name (1c, 2c, 2c_causal, ... in " +
-                   dir.string() + ")");
+  const fs::path file = find_dataset_config(value);
+  if (file.empty())
+    throw UsageError("--config '" + value +
+                     "' is neither a file nor an installed config name (1c, 2c, 2c_causal, ... "
+                     "in " +
+                     installed_dataset_configs_dir().string() + ")");
+  return file;
 }
 
 }  // namespace ropes::sim::tools

@@ -68,6 +68,13 @@ struct Calibration {
 /// the run, named after it with "-eval" (runs/a/ -> runs/a-eval). Never inside the run.
 std::filesystem::path default_evaluation_dir(const std::filesystem::path& run_dir);
 
+/// Where an evaluation of the run in `run_dir` writes `name`: `out` when not empty, else
+/// default_evaluation_dir(run_dir) / name. Throws std::invalid_argument when `out` lies inside
+/// the run directory (after resolving links): an evaluation never writes into a run.
+std::filesystem::path evaluation_output(const std::filesystem::path& run_dir,
+                                        const std::filesystem::path& out,
+                                        const std::filesystem::path& name);
+
 /// The calibrations of `run` that its evaluations may have written, in this order:
 /// default_evaluation_dir(run)/calibration.json (ropes-eval --data),
 /// default_evaluation_dir(run)/report/calibration.json (ropes-eval --suite) and, when the

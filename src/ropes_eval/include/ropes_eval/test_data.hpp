@@ -1,18 +1,20 @@
 #pragma once
-// The test data of ropes-eval's suites: the dataset a suite needs, generated through
-// ropes_sim's generator into a cache directory and found there the next time.
-//
-// The cache entry of a dataset is CACHE/<config name>-seed<S>-<12 hex digits>, the digits
-// those of the SHA-256 of the config as the manifest records it plus the distribution file's
-// bytes: another config, distribution or seed is another entry, and the generator's own
-// resume (shard markers, generation.json) makes a complete entry cost nothing to reuse and
-// an interrupted one continue where it stopped.
+/// @file test_data.hpp
+/// The test data of the suites (suites.hpp): the dataset a suite needs, generated through
+/// ropes_sim's generator into a cache directory and found there the next time. Part of
+/// ropes_eval's pipeline library (`ropes_eval::pipeline`).
+///
+/// The cache entry of a dataset is CACHE/<config name>-seed<S>-<12 hex digits>, the digits
+/// those of the SHA-256 of the config as the manifest records it plus the distribution file's
+/// bytes: another config, distribution or seed is another entry, and the generator's own
+/// resume (shard markers, generation.json) makes a complete entry cost nothing to reuse and
+/// an interrupted one continue where it stopped.
 #include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <string>
 
-namespace ropes::eval::tools {
+namespace ropes::eval {
 
 /// Which test set: the training distribution (id), the paper's OOD observational table with
 /// the ID interventions (ood), or the causal SEM over the joints (causal).
@@ -47,4 +49,4 @@ std::filesystem::path installed_dataset_config(const std::string& name_or_path);
 /// size than the training set; errors of generate_dataset pass through.
 TestData ensure_test_data(const TestDataRequest& request);
 
-}  // namespace ropes::eval::tools
+}  // namespace ropes::eval

@@ -1,8 +1,9 @@
-#include "suites.hpp"
+#include "ropes_eval/suites.hpp"
 
 #include <ropes_core/dataset.hpp>
 #include <ropes_core/file_io.hpp>
 #include <ropes_core/json_text.hpp>
+#include <ropes_crl/calibration.hpp>
 #include <ropes_crl/dataset_version.hpp>
 #include <ropes_crl/run_directory.hpp>
 #include <ropes_eval/html_report.hpp>
@@ -20,27 +21,36 @@
 #include <set>
 #include <sstream>
 
-#include "test_data.hpp"
+#include "ropes_eval/test_data.hpp"
 
-namespace ropes::eval::tools {
+namespace ropes::eval {
+
+namespace fs = std::filesystem;
 
 void check_suites(const std::vector<std::string>& suites) {
   for (const std::string& s : suites)
     if (s != "id" && s != "ood" && s != "causal" && s != "occlusion")
-      throw UsageError("--suite names '" + s + "'; expected id, ood, causal or occlusion");
+      throw std::invalid_argument("'" + s +
+                                  "' is not a suite; expected id, ood, causal or occlusion");
 }
 
-fs::path default_cache() {
+fs::path default_test_data_cache() {
   if (const char* c = std::getenv("ROPES_DATA_CACHE"); c != nullptr && *c != 0)
     return c;
   if (const char* x = std::getenv("XDG_CACHE_HOME"); x != nullptr && *x != 0)
     return fs::path(x) / "ropes" / "test-data";
   if (const char* h = std::getenv("HOME"); h != nullptr && *h != 0)
     return fs::path(h) / ".cache" / "ropes" / "test-data";
-  throw UsageError("no --data-cache, and neither ROPES_DATA_CACHE, XDG_CACHE_HOME nor HOME is set");
+  throw std::invalid_argument(
+      "no test data cache given, and neither ROPES_DATA_CACHE, XDG_CACHE_HOME nor HOME is set");
 }
 
 namespace {
+
+void write_text(const fs::path& path, const std::string& text) {
+  core::write_file_atomically(path, reinterpret_cast<const std::uint8_t*>(text.data()),
+                              text.size());
+}
 
 // run.json's image side and the training set's seed, each checked
 struct RunFacts {
@@ -118,16 +128,22 @@ std::shared_ptr<RobotMasks> robot_masks_of(const TestData& test) {
 
 }  // namespace
 
-SuiteOutcome run_suites(const std::string& run_dir, const std::string& data, const std::string& out,
-                        int threads, ropes::eval::RunEvaluationOptions options,
-                        const SuiteArgs& args, const std::function<void(const std::string&)>& log) {
+SuiteOutcome run_suites(const fs::path& run_dir, const SuiteOptions& args,
+                        const std::function<void(const std::string&)>& log_to) {
   check_suites(args.suites);
+  const auto log = [&log_to](const std::string& line) {
+    if (log_to)
+      log_to(line);
+  };
+  RunEvaluationOptions options = args.evaluation;
+  const fs::path& data = args.data;
+  const int threads = args.threads;
   const std::set<std::string> wanted(args.suites.begin(), args.suites.end());
-  const fs::path report_dir = evaluation_output(run_dir, out, "report");
+  const fs::path report_dir = crl::evaluation_output(run_dir, args.out, "report");
   const RunFacts facts = run_facts(run_dir);
   // a run trained on a dataset of the old TN(mean, x) reading: refused before anything runs
   ropes::crl::require_run_of_current_sim_dataset(run_dir);
-  ropes::eval::EvaluationReport report;
+  EvaluationReport report;
   const bool occlusion = wanted.count("occlusion") != 0;
   // occlusion squares larger than the image are left out with a note
   std::vector<std::int64_t> occlusion_sizes;
@@ -140,11 +156,12 @@ SuiteOutcome run_suites(const std::string& run_dir, const std::string& data, con
   }
   // the test sets take the training set's seed + 1 unless told; the training seed itself
   // would give the training set's own anchors
-  const std::uint64_t test_seed = args.have_test_seed ? args.test_seed : facts.train_seed + 1;
+  const std::uint64_t test_seed = args.test_seed ? *args.test_seed : facts.train_seed + 1;
   if (facts.have_train_seed && test_seed == facts.train_seed)
-    throw UsageError("--test-seed " + std::to_string(test_seed) +
-                     " is the training set's seed: its test sets would hold the training "
-                     "anchors; pick another");
+    throw std::invalid_argument(
+        "test seed " + std::to_string(test_seed) +
+        " is the training set's seed: its test sets would hold the training "
+        "anchors; pick another");
 
   // every test set first, so that a suite that cannot run is known before anything trains
   std::vector<std::string> distributions;
@@ -165,7 +182,7 @@ SuiteOutcome run_suites(const std::string& run_dir, const std::string& data, con
       request.distribution = d;
       request.min_observational = options.calibration_samples + options.test_samples;
       request.seed = test_seed;
-      request.cache = args.cache.empty() ? default_cache() : args.cache;
+      request.cache = args.cache.empty() ? default_test_data_cache() : args.cache;
       request.threads = threads;
       request.log = log;
       try {
@@ -193,20 +210,20 @@ SuiteOutcome run_suites(const std::string& run_dir, const std::string& data, con
   }
 
   // the supervised baselines, trained once and scored on every suite
-  std::vector<ropes::eval::SupervisedEncoder> supervised;
+  std::vector<SupervisedEncoder> supervised;
   for (double f : args.supervised) {
-    ropes::eval::SupervisedOptions so;
+    SupervisedOptions so;
     so.seed = options.seed;
     so.max_steps = args.supervised_max_steps;
-    supervised.push_back(ropes::eval::SupervisedEncoder::train(run_dir, f, so));
-    const ropes::eval::SupervisedEncoder& e = supervised.back();
+    supervised.push_back(SupervisedEncoder::train(run_dir, f, so));
+    const SupervisedEncoder& e = supervised.back();
     report.supervised.push_back({f, e.labels(), e.steps(), e.final_loss()});
     std::ostringstream line;
     line << "supervised baseline on " << e.labels() << " labelled samples (" << 100.0 * f
          << " %): " << e.steps() << " steps, last epoch's loss " << e.final_loss();
     log(line.str());
   }
-  for (const ropes::eval::SupervisedEncoder& e : supervised)
+  for (const SupervisedEncoder& e : supervised)
     options.supervised.push_back(&e);
 
   // the one-camera diagnostic: Table 1's 32 px, else the middle size asked
@@ -229,10 +246,10 @@ SuiteOutcome run_suites(const std::string& run_dir, const std::string& data, con
       }
     }
     // the clean codes and silhouettes, computed by the first occluded suite, reused by the rest
-    const auto cache = std::make_shared<ropes::eval::EvaluationCache>();
+    const auto cache = std::make_shared<EvaluationCache>();
     auto evaluate = [&, d = d, test = test](std::int64_t size, std::vector<std::int64_t> cameras,
                                             const std::string& name) {
-      ropes::eval::RunEvaluationOptions o = options;
+      RunEvaluationOptions o = options;
       o.cache = cache;
       o.occlusion = size;
       o.occlusion_seed = options.seed;
@@ -247,13 +264,13 @@ SuiteOutcome run_suites(const std::string& run_dir, const std::string& data, con
       // the diagnostics' MLP probe: on the clean id suite only
       if (!(d == "id" && size == 0))
         o.probe_steps = 0;
-      ropes::eval::SuiteResult s;
+      SuiteResult s;
       s.name = name;
       s.distribution = d;
       s.occlusion = size;
       s.data_config = test.config_name;
       log("evaluating " + s.name);
-      s.evaluation = ropes::eval::evaluate_run(run_dir, test.dir, o);
+      s.evaluation = evaluate_run(run_dir, test.dir, o);
       return s;
     };
     for (std::int64_t size : sizes)
@@ -275,17 +292,17 @@ SuiteOutcome run_suites(const std::string& run_dir, const std::string& data, con
   // AE1's information bound beside the suites: what its code holds of each joint (it needs
   // the training set, which a run evaluated on a --data test set may no longer have)
   log("screening AE1's code and the LDRs");
-  ropes::eval::ScreeningOptions screening;
+  ScreeningOptions screening;
   screening.probe_steps = options.probe_steps;
   screening.seed = options.seed;
   try {
-    report.screen = ropes::eval::screen_run(run_dir, screening);
+    report.screen = screen_run(run_dir, screening);
   } catch (const std::exception& e) {
     report.notes.push_back(std::string("screening: ") + e.what());
     log(report.notes.back());
   }
   const std::string setting = report.suites.front().evaluation.setting;
-  const nlohmann::json paper = ropes::eval::paper_suite_numbers(setting, options.paper_results);
+  const nlohmann::json paper = paper_suite_numbers(setting, options.paper_results);
   report.paper_appendix = paper["appendix"];
   report.paper_table1_occlusion = paper["table1_occlusion"];
   report.paper_robopepp = paper["robopepp"];
@@ -299,10 +316,10 @@ SuiteOutcome run_suites(const std::string& run_dir, const std::string& data, con
     figure = occlusion_sizes[occlusion_sizes.size() / 2];
   if (facts.image_side > 0)
     figure = std::min(figure, facts.image_side / 2);
-  const ropes::eval::ReportImages images =
-      ropes::eval::collect_report_images(run_dir, tests.front().second.dir, figure, options.seed);
-  write_text(report_dir / "report.html", ropes::eval::html_report(report, run_dir, images));
-  const ropes::eval::SuiteResult* id = report.find("id");
+  const ReportImages images =
+      collect_report_images(run_dir, tests.front().second.dir, figure, options.seed);
+  write_text(report_dir / "report.html", html_report(report, run_dir, images));
+  const SuiteResult* id = report.find("id");
   if (id != nullptr)
     id->evaluation.calibration.write(report_dir / "calibration.json");
   SuiteOutcome outcome;
@@ -311,4 +328,4 @@ SuiteOutcome run_suites(const std::string& run_dir, const std::string& data, con
   return outcome;
 }
 
-}  // namespace ropes::eval::tools
+}  // namespace ropes::eval

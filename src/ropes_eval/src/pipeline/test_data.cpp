@@ -1,9 +1,8 @@
-#include "test_data.hpp"
+#include "ropes_eval/test_data.hpp"
 
 #include <ropes_core/file_format_error.hpp>
 #include <ropes_core/file_io.hpp>
 #include <ropes_core/json_text.hpp>
-#include <ropes_core/package_share.hpp>
 #include <ropes_core/plain_name.hpp>
 #include <ropes_core/sha256.hpp>
 #include <ropes_crl/dataset_version.hpp>
@@ -17,9 +16,10 @@
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
+#include <system_error>
 #include <vector>
 
-namespace ropes::eval::tools {
+namespace ropes::eval {
 
 // ropes_crl reads datasets without linking the simulator, so it keeps its own number for the
 // oldest sim_dataset_version it reads; this file sees both
@@ -47,30 +47,23 @@ nlohmann::json read_json(const fs::path& p) {
   }
 }
 
-// the installed ropes_sim's dataset configs (core::find_package_share)
-fs::path sim_datasets_dir() {
-  return core::find_package_share("ropes_sim", "datasets", ROPES_SIM_SHARE_DIR) / "datasets";
-}
-
+// the installed config of that name (never a path: the name may come from a manifest)
 fs::path installed_config(const std::string& name) {
-  // the name in a manifest comes from whoever wrote the dataset: never a path out of the
-  // installed directory
   if (!core::is_plain_name(name))
-    return fs::path();
-  const fs::path p = sim_datasets_dir() / (name + ".json");
-  return fs::is_regular_file(p) ? p : fs::path();
+    return {};
+  const fs::path p = sim::installed_dataset_configs_dir() / (name + ".json");
+  std::error_code ec;
+  return fs::is_regular_file(p, ec) ? p : fs::path();
 }
 
 }  // namespace
 
 fs::path installed_dataset_config(const std::string& name_or_path) {
-  if (fs::is_regular_file(name_or_path))
-    return name_or_path;
-  const fs::path p = installed_config(name_or_path);
+  const fs::path p = sim::find_dataset_config(name_or_path);
   if (p.empty())
     throw std::invalid_argument("dataset config '" + name_or_path +
                                 "' is neither a file nor an installed ropes_sim config (in " +
-                                sim_datasets_dir().string() + ")");
+                                sim::installed_dataset_configs_dir().string() + ")");
   return p;
 }
 
@@ -157,4 +150,4 @@ TestData ensure_test_data(const TestDataRequest& request) {
   return out;
 }
 
-}  // namespace ropes::eval::tools
+}  // namespace ropes::eval

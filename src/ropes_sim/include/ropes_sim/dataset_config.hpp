@@ -41,4 +41,14 @@ struct DatasetConfig {
   std::int64_t shard_count() const { return (anchors + anchors_per_shard - 1) / anchors_per_shard; }
 };
 
+/// The installed dataset configs' directory, share/ropes_sim/datasets, found as
+/// core::find_package_share finds it (beside the executable, a sourced install space, or
+/// where this build installs).
+std::filesystem::path installed_dataset_configs_dir();
+
+/// The dataset config `name_or_path`: a file, else the installed config of that name
+/// ("small-1c"); an empty path when it is neither (a name that is not a plain name, such as
+/// "../x", is never looked up).
+std::filesystem::path find_dataset_config(const std::string& name_or_path);
+
 }  // namespace ropes::sim
