@@ -5,12 +5,15 @@
 // Latency is from frame publication (ImageFrame.stamp_ns, taken after rendering) to the
 // estimate's reception here; inference is the node's own latency_ns (frame taken -> estimate
 // written); transport and queueing are the rest. Every process shares the same cores.
+#include <ropes_core/child_process.hpp>
 #include <ropes_crl/estimator.hpp>
 #include <ropes_msgs/dds.hpp>
 #include <ropes_sim/dataset_config.hpp>
 #include <ropes_sim/renderer.hpp>
 #include <ropes_sim/rig_renderer.hpp>
 #include <ropes_sim/trajectory.hpp>
+
+#include <csignal>
 
 #include <algorithm>
 #include <cstdio>
@@ -20,7 +23,6 @@
 #include <string>
 #include <vector>
 
-#include "../test/child_process.hpp"
 #include "ropes_eval/test_data.hpp"
 
 namespace {
@@ -28,7 +30,8 @@ namespace {
 namespace fs = std::filesystem;
 namespace msgs = ropes::msgs;
 using Clock = std::chrono::steady_clock;
-using ropes::eval::testing::Child;
+using ropes::core::ChildOptions;
+using ropes::core::ChildProcess;
 
 const char* const kUsage = R"(usage: ropes_stream_bench --run RUN [--run RUN2 ...] [options]
 
@@ -94,13 +97,15 @@ Streamed stream(const fs::path& run, const std::string& dataset_config, double r
   msgs::Participant participant({"ropes_stream_bench"});
   msgs::Subscriber<msgs::PoseEstimate> estimates(participant);
   const fs::path node_log = work / "node.log", sim_log = work / "sim.log";
-  Child node({ROPES_STREAM_EXE, "--run", run.string(), "--run-id", "bench"}, node_log);
+  ChildProcess node({ROPES_STREAM_EXE, "--run", run.string(), "--run-id", "bench"},
+                    ChildOptions::to_log(node_log));
   if (!estimates.wait_for_matched(1, std::chrono::seconds(60)))
     throw std::runtime_error("ropes-stream did not come up: " + text_of(node_log));
   std::this_thread::sleep_for(std::chrono::milliseconds(500));  // its frame reader, matched too
-  Child sim({ROPES_SIM_STREAM_EXE, "--config", dataset_config, "--rate", std::to_string(rate),
-             "--frames", std::to_string(frames), "--wait-for-subscribers", "1"},
-            sim_log);
+  ChildProcess sim(
+      {ROPES_SIM_STREAM_EXE, "--config", dataset_config, "--rate", std::to_string(rate), "--frames",
+       std::to_string(frames), "--wait-for-subscribers", "1"},
+      ChildOptions::to_log(sim_log));
   msgs::PoseEstimate e;
   Clock::time_point first{}, last{};
   Clock::time_point quiet = Clock::now();

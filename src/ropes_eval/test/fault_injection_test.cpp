@@ -35,6 +35,7 @@
 #include <thread>
 #include <vector>
 
+#include "ropes_core/child_process.hpp"
 #include "ropes_nn/safetensors.hpp"
 
 namespace fs = std::filesystem;
@@ -71,69 +72,39 @@ struct KillPoint {
 Job run_job(const std::vector<std::string>& args, KillPoint kill = {},
             std::uint64_t file_limit = 0) {
   Job job;
-  int fds[2];
-  if (::pipe(fds) != 0)
-    return job;
   const Clock::time_point start = Clock::now();
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    ::dup2(fds[1], 1);
-    ::dup2(fds[1], 2);
-    ::close(fds[0]);
-    ::close(fds[1]);
-    if (file_limit > 0) {
-      const rlimit limit{file_limit, file_limit};
-      ::setrlimit(RLIMIT_FSIZE, &limit);
-      ::signal(SIGXFSZ, SIG_IGN);
-    }
-    std::vector<char*> argv;
-    for (const std::string& a : args)
-      argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    ::execv(args[0].c_str(), argv.data());
-    ::_exit(127);
-  }
-  ::close(fds[1]);
   std::atomic<int> lines{0};
   std::atomic<bool> text_seen{false};
-  std::thread reader([&] {
-    char buf[4096];
-    ssize_t n;
-    while ((n = ::read(fds[0], buf, sizeof buf)) > 0) {
-      job.text.append(buf, static_cast<std::size_t>(n));
-      const auto count = static_cast<int>(std::count(buf, buf + n, '\n'));
-      const double at = std::chrono::duration<double>(Clock::now() - start).count();
-      job.line_times.insert(job.line_times.end(), static_cast<std::size_t>(count), at);
-      lines += count;
-      if (!kill.text.empty() && job.text.find(kill.text) != std::string::npos)
-        text_seen = true;
+  ropes::core::ChildOptions options;
+  options.file_size_limit = file_limit;
+  options.on_line = [&](ropes::core::ChildProcess& child, const std::string& line) {
+    if (line.back() == '\n') {
+      job.line_times.push_back(std::chrono::duration<double>(Clock::now() - start).count());
+      ++lines;
     }
-  });
-  bool reaped = false;
+    if (!kill.text.empty() && child.output().find(kill.text) != std::string::npos)
+      text_seen = true;
+  };
+  ropes::core::ChildProcess child(args, options);
   if (kill.lines >= 0 || !kill.text.empty()) {
     Clock::time_point seen{};  // when the line count reached kill.lines
     const auto delay = std::chrono::microseconds(static_cast<std::int64_t>(kill.delay * 1e6));
-    while (true) {
-      if (::waitpid(pid, &job.status, WNOHANG) == pid) {
-        reaped = true;  // it ended before the moment
-        break;
-      }
+    while (child.running()) {  // else it ended before the moment
       const Clock::time_point now = Clock::now();
       if (seen == Clock::time_point{} &&
           (kill.text.empty() ? lines >= kill.lines : text_seen.load()))
         seen = now;
       if (seen != Clock::time_point{} && now >= seen + delay) {
-        ::kill(pid, SIGKILL);
+        child.signal(SIGKILL);
         break;
       }
       std::this_thread::sleep_for(std::chrono::microseconds(500));
     }
   }
-  if (!reaped)
-    ::waitpid(pid, &job.status, 0);
+  child.wait();
+  job.status = child.status();
   job.seconds = std::chrono::duration<double>(Clock::now() - start).count();
-  reader.join();
-  ::close(fds[0]);
+  job.text = child.output();
   return job;
 }
 

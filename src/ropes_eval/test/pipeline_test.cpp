@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
+#include <ropes_core/child_process.hpp>
 #include <ropes_core/sha256.hpp>
 #include <ropes_crl/calibration.hpp>
 #include <ropes_crl/run_directory.hpp>
@@ -40,17 +41,8 @@ struct Output {
 
 // runs `command` through the shell, stdout and stderr together
 Output run(const std::string& command) {
-  Output out;
-  std::FILE* p = ::popen((command + " 2>&1").c_str(), "r");
-  if (p == nullptr)
-    return out;
-  std::array<char, 4096> buf;
-  std::size_t n;
-  while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0)
-    out.text.append(buf.data(), n);
-  const int status = ::pclose(p);
-  out.rc = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return out;
+  const ropes::core::ChildResult r = ropes::core::run_shell(command);
+  return {r.rc, r.output};
 }
 
 std::string bytes_of(const fs::path& p) {
@@ -96,32 +88,17 @@ struct Killed {
 };
 Killed run_until_killed(const std::vector<std::string>& args, const std::string& stop) {
   Killed k;
-  int fds[2];
-  if (::pipe(fds) != 0)
-    return k;
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    ::dup2(fds[1], 1);
-    ::dup2(fds[1], 2);
-    ::close(fds[0]);
-    std::vector<char*> argv;
-    for (const std::string& a : args)
-      argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    ::execv(args[0].c_str(), argv.data());
-    ::_exit(127);
-  }
-  ::close(fds[1]);
-  char c;
-  while (::read(fds[0], &c, 1) == 1) {
-    k.seen += c;
-    if (c == '\n' && !k.sent && k.seen.find(stop) != std::string::npos) {
-      ::kill(pid, SIGKILL);
+  ropes::core::ChildOptions options;
+  options.on_line = [&](ropes::core::ChildProcess& child, const std::string&) {
+    if (!k.sent && child.output().find(stop) != std::string::npos) {
+      child.signal(SIGKILL);
       k.sent = true;
     }
-  }
-  ::close(fds[0]);
-  ::waitpid(pid, &k.status, 0);
+  };
+  ropes::core::ChildProcess child(args, options);
+  child.wait();
+  k.status = child.status();
+  k.seen = child.output();
   return k;
 }
 

@@ -3,6 +3,7 @@
 // process, ropes-stream --replay, bad frames, ropes-eval --live and ropes-train --status.
 // Witness for the estimates: the Estimator run offline in this process on the very bytes
 // each frame carried.
+#include <ropes_core/child_process.hpp>
 #include <ropes_core/dataset.hpp>
 #include <ropes_crl/calibration.hpp>
 #include <ropes_crl/estimator.hpp>
@@ -27,19 +28,18 @@
 #include <thread>
 #include <vector>
 
-#include "child_process.hpp"
-
 namespace {
 
 namespace fs = std::filesystem;
 namespace msgs = ropes::msgs;
-using ropes::eval::testing::Child;
+using ropes::core::ChildOptions;
+using ropes::core::ChildProcess;
 using namespace std::chrono_literals;
 
 const fs::path kDir = ROPES_EVAL_STREAM_TEST_DIR;
 
 int run_to_end(std::vector<std::string> args, const fs::path& log) {
-  Child c(std::move(args), log);
+  ChildProcess c(std::move(args), ChildOptions::to_log(log));
   return c.wait(std::chrono::seconds(300));
 }
 
@@ -113,9 +113,9 @@ TEST_P(Streaming, EveryFrameGetsExactlyOneEstimateEqualToTheOfflineEstimator) {
   // --wait-for-subscribers 1: the node reads no frame before its estimate writer has matched
   // this reader. That this reader matched the writer says nothing of the other direction, and
   // a volatile writer drops what it writes before (an estimate lost under ASan in CI).
-  Child node({ROPES_STREAM_EXE, "--run", run.string(), "--frame-qos", "reliable_all",
-              "--wait-for-subscribers", "1"},
-             kDir / ("node-" + cameras + ".log"));
+  ChildProcess node({ROPES_STREAM_EXE, "--run", run.string(), "--frame-qos", "reliable_all",
+                     "--wait-for-subscribers", "1"},
+                    ChildOptions::to_log(kDir / ("node-" + cameras + ".log")));
   ASSERT_TRUE(estimates.wait_for_matched(1, 30s)) << text_of(kDir / ("node-" + cameras + ".log"));
   const int n = 60;
   std::vector<std::string> sim = {ROPES_SIM_STREAM_EXE,
@@ -131,7 +131,7 @@ TEST_P(Streaming, EveryFrameGetsExactlyOneEstimateEqualToTheOfflineEstimator) {
                                   "2"};
   if (cameras == "2c")
     sim.push_back("--split-cameras");  // the node groups the cameras of one instant
-  Child simulator(sim, kDir / ("sim-" + cameras + ".log"));
+  ChildProcess simulator(sim, ChildOptions::to_log(kDir / ("sim-" + cameras + ".log")));
 
   // the frames as they were published (a whole instant, assembled for --split-cameras)
   std::map<unsigned long long, std::vector<std::uint8_t>> pixels;
@@ -219,9 +219,9 @@ TEST(StreamingNode, BadFramesAreRefusedCountedAndLoggedWithoutStoppingTheNode) {
   const fs::path log = kDir / "node-bad.log";
   // the node opens its frame reader once its estimate writer has matched `estimates` (see
   // Streaming above), so a frame writer matched to that reader loses no estimate
-  Child node({ROPES_STREAM_EXE, "--run", run.string(), "--frame-qos", "reliable_all",
-              "--wait-for-subscribers", "1"},
-             log);
+  ChildProcess node({ROPES_STREAM_EXE, "--run", run.string(), "--frame-qos", "reliable_all",
+                     "--wait-for-subscribers", "1"},
+                    ChildOptions::to_log(log));
   ASSERT_TRUE(pub.wait_for_matched(1, 30s)) << text_of(log);
   ASSERT_TRUE(estimates.wait_for_matched(1, 30s));
   std::vector<msgs::ImageFrame> sent = {
@@ -283,9 +283,9 @@ TEST(StreamingNode, ReplayOfADatasetAndTheLiveEvaluationOfIt) {
   msgs::Subscriber<msgs::JointState> truths(participant);
   const fs::path live_json = kDir / "live.json";
   fs::remove(live_json);
-  Child live({ROPES_EVAL_EXE, "--live", "--estimates", std::to_string(rows), "--window", "1000",
-              "--out", live_json.string()},
-             kDir / "live.log");
+  ChildProcess live({ROPES_EVAL_EXE, "--live", "--estimates", std::to_string(rows), "--window",
+                     "1000", "--out", live_json.string()},
+                    ChildOptions::to_log(kDir / "live.log"));
   std::this_thread::sleep_for(1s);
   const int rc = run_to_end({ROPES_STREAM_EXE, "--run", run.string(), "--replay", data.string(),
                              "--rows", std::to_string(rows), "--wait-for-subscribers", "2"},
@@ -344,9 +344,9 @@ TEST(StreamingNode, TrainingPublishesItsStatusStageByStage) {
   fs::remove_all(out);
   msgs::Participant participant({"status-test"});
   msgs::Subscriber<msgs::RunStatus> status(participant);
-  Child train({ROPES_TRAIN_EXE, "--config", "1c-tiny", "--data", (kDir / "data-1c").string(),
-               "--out", out.string(), "--status", "--progress", "lines"},
-              kDir / "train-status.log");
+  ChildProcess train({ROPES_TRAIN_EXE, "--config", "1c-tiny", "--data", (kDir / "data-1c").string(),
+                      "--out", out.string(), "--status", "--progress", "lines"},
+                     ChildOptions::to_log(kDir / "train-status.log"));
   std::vector<msgs::RunStatus> seen;
   msgs::RunStatus s;
   while (status.take(s, 30s)) {
@@ -456,9 +456,12 @@ TEST(StreamingNode, TheDemoNodesStopCleanlyOnSigtermAndLeaveNoSharedMemory) {
   const fs::path run = tiny_run("1c");
   const std::set<std::string> before = shm_entries();
   {
-    Child node({ROPES_STREAM_EXE, "--run", run.string()}, kDir / "demo-node.log");
-    Child echo({ROPES_ECHO_EXE, "pose_estimates"}, kDir / "demo-echo.log");
-    Child sim({ROPES_SIM_STREAM_EXE, "--config", "tiny-1c"}, kDir / "demo-sim.log");
+    ChildProcess node({ROPES_STREAM_EXE, "--run", run.string()},
+                      ChildOptions::to_log(kDir / "demo-node.log"));
+    ChildProcess echo({ROPES_ECHO_EXE, "pose_estimates"},
+                      ChildOptions::to_log(kDir / "demo-echo.log"));
+    ChildProcess sim({ROPES_SIM_STREAM_EXE, "--config", "tiny-1c"},
+                     ChildOptions::to_log(kDir / "demo-sim.log"));
     // until the echo has printed estimates: the three are talking over shared memory
     const auto end = std::chrono::steady_clock::now() + 30s;
     while (text_of(kDir / "demo-echo.log").find("estimate 5 ") == std::string::npos &&

@@ -1,12 +1,12 @@
 // Two processes over the loopback profile (ROPES_DDS_LOOPBACK=1, set by CTest): no loss
 // under reliable_all, and the peer lifecycle: no subscriber, a late one, a killed one, and a
 // clean exit on SIGTERM.
+#include <ropes_core/child_process.hpp>
 #include <ropes_msgs/dds.hpp>
 
 #include <gtest/gtest.h>
 
 #include <signal.h>
-#include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -17,55 +17,28 @@
 #include <thread>
 #include <vector>
 
-extern char** environ;
-
 namespace {
 
 using namespace ropes::msgs;
 using namespace std::chrono_literals;
 
-// a child process running the test peer (ROPES_MSGS_PEER, set by CMake)
-class Child {
+// the test peer (ROPES_MSGS_PEER, set by CMake) with `args`, in a child process, its output
+// captured; `env`: "NAME=value" entries over this process's environment
+class Peer : public ropes::core::ChildProcess {
  public:
-  explicit Child(std::vector<std::string> args, std::vector<std::string> extra_env = {}) {
-    args.insert(args.begin(), ROPES_MSGS_PEER);
-    std::vector<char*> argv;
-    for (auto& a : args)
-      argv.push_back(a.data());
-    argv.push_back(nullptr);
-    std::vector<char*> envp;
-    for (char** e = environ; *e != nullptr; ++e)
-      envp.push_back(*e);
-    for (auto& e : extra_env)
-      envp.push_back(e.data());
-    envp.push_back(nullptr);
-    if (posix_spawn(&pid_, argv[0], nullptr, nullptr, argv.data(), envp.data()) != 0)
-      pid_ = -1;
-  }
-  ~Child() {
-    if (pid_ > 0) {
-      ::kill(pid_, SIGKILL);
-      ::waitpid(pid_, nullptr, 0);
-    }
-  }
-  void signal(int sig) { ::kill(pid_, sig); }
-  // the exit status, or -1 when it did not exit within `timeout` (or was killed)
-  int wait(std::chrono::seconds timeout) {
-    const auto end = std::chrono::steady_clock::now() + timeout;
-    while (std::chrono::steady_clock::now() < end) {
-      int status = 0;
-      if (::waitpid(pid_, &status, WNOHANG) == pid_) {
-        pid_ = -1;
-        return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-      }
-      std::this_thread::sleep_for(10ms);
-    }
-    return -1;
-  }
-  bool started() const { return pid_ > 0; }
+  explicit Peer(std::vector<std::string> args, std::vector<std::string> env = {})
+      : ChildProcess(with_peer(std::move(args)), options(std::move(env))) {}
 
  private:
-  pid_t pid_ = -1;
+  static std::vector<std::string> with_peer(std::vector<std::string> args) {
+    args.insert(args.begin(), ROPES_MSGS_PEER);
+    return args;
+  }
+  static ropes::core::ChildOptions options(std::vector<std::string> env) {
+    ropes::core::ChildOptions o;
+    o.environment = std::move(env);
+    return o;
+  }
 };
 
 std::set<std::string> shm_entries() {
@@ -78,8 +51,7 @@ std::set<std::string> shm_entries() {
 TEST(RopesDds, TenThousandEstimatesUnderReliableAllArriveOnceAndInOrder) {
   Participant participant({"test-subscriber"});
   Subscriber<PoseEstimate> sub(participant);
-  Child publisher({"publish", "10000"});
-  ASSERT_TRUE(publisher.started());
+  Peer publisher({"publish", "10000"});
   PoseEstimate m;
   for (unsigned long long i = 0; i < 10000; ++i) {
     ASSERT_TRUE(sub.take(m, 30s)) << "sample " << i << " never came";
@@ -103,8 +75,7 @@ TEST(RopesDds, PublisherWithoutSubscriberDoesNotBlock) {
 }
 
 TEST(RopesDds, LateSubscriberGetsTheStreamFromWhenItJoins) {
-  Child publisher({"publish-until-signal"});
-  ASSERT_TRUE(publisher.started());
+  Peer publisher({"publish-until-signal"});
   std::this_thread::sleep_for(1500ms);  // the publisher writes for nobody meanwhile
   Participant participant({"test-late-subscriber"});
   Subscriber<PoseEstimate> sub(participant);
@@ -139,13 +110,13 @@ TEST(RopesDds, SubscriberKilledAndRestartedGetsTheStreamAgain) {
   {
     // UDP only: a process killed with SIGKILL while it touches a Fast DDS 2.9 shared-memory
     // port can leave the port's lock taken for good (the README's note on SIGKILL)
-    Child first({"subscribe-any", "100000000"}, {"ROPES_DDS_SHM=0"});
+    Peer first({"subscribe-any", "100000000"}, {"ROPES_DDS_SHM=0"});
     ASSERT_TRUE(pub.wait_for_matched(1, 20s));
     std::this_thread::sleep_for(300ms);
     first.signal(SIGKILL);
     first.wait(5s);
   }
-  Child second({"subscribe-any", "100"});
+  Peer second({"subscribe-any", "100"});
   EXPECT_EQ(second.wait(60s), 0) << "the restarted subscriber did not get 100 consecutive samples";
   const unsigned long long before = written;
   std::this_thread::sleep_for(200ms);
@@ -158,8 +129,8 @@ TEST(RopesDds, SubscriberKilledAndRestartedGetsTheStreamAgain) {
 TEST(RopesDds, SigtermLeavesNoSharedMemorySegments) {
   const std::set<std::string> before = shm_entries();
   {
-    Child publisher({"publish-until-signal"});
-    Child subscriber({"subscribe-any", "100000000"});
+    Peer publisher({"publish-until-signal"});
+    Peer subscriber({"subscribe-any", "100000000"});
     std::this_thread::sleep_for(2500ms);  // discovery, then samples over shared memory
     subscriber.signal(SIGTERM);
     publisher.signal(SIGINT);

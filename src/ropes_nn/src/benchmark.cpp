@@ -5,9 +5,12 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <sstream>
+#include <string>
 #include <vector>
 
 #include "gemm.hpp"
+#include "ropes_core/child_process.hpp"
 
 namespace ropes::nn::bench {
 
@@ -56,14 +59,13 @@ std::map<std::string, double> run_torch_peer(const std::string& script, const st
   const std::string command =
       "env -u OPENBLAS_CORETYPE -u OPENBLAS_L2_SIZE OPENBLAS_NUM_THREADS=1 " + preload +
       "/usr/bin/python3 " + script + " " + args + " 2>/dev/null";
-  FILE* pipe = popen(command.c_str(), "r");
-  if (!pipe)
-    return peer;
-  char name[128];
+  const core::ChildResult r = core::run_shell(command);
+  std::istringstream lines(r.output);
+  std::string name;
   double value = 0;
-  while (std::fscanf(pipe, "%127s %lf", name, &value) == 2)
+  while (lines >> name >> value)
     peer[name] = value;
-  if (pclose(pipe) != 0 || peer.empty())
+  if (r.rc != 0 || peer.empty())
     std::printf("note: the PyTorch peer did not finish (apt-get install python3-torch)\n");
   return peer;
 }

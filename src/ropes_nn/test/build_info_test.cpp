@@ -9,17 +9,13 @@
 #include <cstdlib>
 #include <string>
 
+#include "ropes_core/child_process.hpp"
+
 namespace ropes::nn {
 namespace {
 
 std::string output_of(const std::string& command) {
-  std::string out;
-  if (FILE* p = ::popen(command.c_str(), "r")) {
-    char buf[256];
-    while (std::fgets(buf, sizeof buf, p) != nullptr)
-      out += buf;
-    ::pclose(p);
-  }
+  std::string out = core::run_shell(command).output;
   while (!out.empty() && (out.back() == '\n' || out.back() == ' '))
     out.pop_back();
   return out;

@@ -3,6 +3,7 @@
 // a truncated file or a foreign one is refused by name and changes nothing.
 #include "ropes_nn/checkpoint.hpp"
 
+#include "ropes_core/child_process.hpp"
 #include "ropes_core/file_io.hpp"
 
 #include <gtest/gtest.h>
@@ -14,6 +15,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iterator>
 #include <string>
 #include <vector>
@@ -106,36 +108,17 @@ TEST(Checkpoint, ResumedRunIsByteIdenticalToAnUninterruptedOne) {
   fs::remove_all(end_whole.parent_path());
 }
 
-// runs `argv` with its stdout in a pipe; `on_line` sees each line and may kill the child
+// runs `argv` with its stdout and stderr in a pipe; `on_line` sees each line and may kill
+// the child; returns the wait status
 int run_child(const std::vector<std::string>& argv,
-              const std::function<void(pid_t, const std::string&)>& on_line, std::string* output) {
-  int fds[2];
-  if (::pipe(fds) != 0)
-    return -1;
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    ::dup2(fds[1], STDOUT_FILENO);
-    ::close(fds[0]);
-    ::close(fds[1]);
-    std::vector<char*> args;
-    for (const std::string& a : argv)
-      args.push_back(const_cast<char*>(a.c_str()));
-    args.push_back(nullptr);
-    ::execv(args[0], args.data());
-    ::_exit(127);
-  }
-  ::close(fds[1]);
-  FILE* in = ::fdopen(fds[0], "r");
-  char line[512];
-  while (std::fgets(line, sizeof(line), in)) {
-    *output += line;
-    if (on_line)
-      on_line(pid, line);
-  }
-  std::fclose(in);
-  int status = 0;
-  ::waitpid(pid, &status, 0);
-  return status;
+              const std::function<void(core::ChildProcess&, const std::string&)>& on_line,
+              std::string* output) {
+  core::ChildOptions options;
+  options.on_line = on_line;
+  core::ChildProcess child(argv, options);
+  child.wait();
+  *output += child.output();
+  return child.status();
 }
 
 // The headline: the README's training loop (examples/train_loop.cpp) killed with SIGKILL
@@ -160,9 +143,9 @@ TEST(Checkpoint, TrainingProcessKilledWithSigkillResumesToTheSameBytes) {
   output.clear();
   status = run_child(
       command(root / "killed"),
-      [](pid_t pid, const std::string& line) {
+      [](core::ChildProcess& child, const std::string& line) {
         if (line == "checkpoint 100\n")
-          ::kill(pid, SIGKILL);
+          child.signal(SIGKILL);
       },
       &output);
   ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) << output;
