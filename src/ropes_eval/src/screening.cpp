@@ -17,6 +17,7 @@
 #include <stdexcept>
 
 #include "json_file.hpp"
+#include "ropes_eval/probes.hpp"
 #include "ropes_eval/run_evaluation.hpp"
 #include "text_format.hpp"
 

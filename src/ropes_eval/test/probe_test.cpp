@@ -1,5 +1,5 @@
-// The linear probe of ropes-eval's diagnostics on a code element that barely varies.
-#include "ropes_eval/run_evaluation.hpp"
+// The linear probe (probes.hpp) of ropes-eval's diagnostics on a code element that barely varies.
+#include "ropes_eval/probes.hpp"
 
 #include <gtest/gtest.h>
 
