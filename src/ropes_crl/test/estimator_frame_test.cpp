@@ -7,8 +7,6 @@
 // architecture, trained for a few steps on a synthetic two-joint dataset (what is tested is
 // the inference path, not the learning). Its own executable: allocation_counter.hpp
 // interposes malloc for the whole process.
-#include <ropes_core/dataset.hpp>
-#include <ropes_core/philox.hpp>
 #include <ropes_crl/estimator.hpp>
 #include <ropes_crl/trainer.hpp>
 #include <ropes_nn/allocation_counter.hpp>
@@ -28,86 +26,25 @@
 #include <string>
 #include <vector>
 
+#include "synthetic_run.hpp"
+
 namespace ropes::crl {
 namespace {
 
 namespace fs = std::filesystem;
 constexpr std::int64_t kSize = 128;
 
-// joint j's bar, centred in its half of the image, at angle q; camera 1 sees the transpose
+using test_support::file_bytes;
+using test_support::kJoints;
+
+// joint j's bar at angle q in camera `camera`'s kSize x kSize image (synthetic_run.hpp)
 void draw(const double q[2], std::int64_t camera, std::uint8_t* image) {
-  for (std::int64_t y = 0; y < kSize; ++y)
-    for (std::int64_t x = 0; x < kSize; ++x) {
-      const std::int64_t u_px = camera == 0 ? x : y, v_px = camera == 0 ? y : x;
-      const int j = u_px < kSize / 2 ? 0 : 1;
-      const double u = static_cast<double>(u_px % (kSize / 2)) - 31.5;
-      const double v = static_cast<double>(v_px) - 63.5;
-      const double along = u * std::cos(q[j]) + v * std::sin(q[j]);
-      const double across = -u * std::sin(q[j]) + v * std::cos(q[j]);
-      image[y * kSize + x] = std::fabs(across) < 3.0 && std::fabs(along) < 28.0 ? 230 : 20;
-    }
+  test_support::draw_bars(q, camera, kSize, image);
 }
 
-const char* const kJoints[2] = {"a", "b"};
-
-// 40 anchors x (observational, do(a)=1, do(a)=2, do(b)=1, do(b)=2), the columns and the
-// metadata ropes-generate writes; without `observational` the metadata names a joint for
-// regime 0, so no sample is observational
+// the synthetic two-joint dataset (synthetic_run.hpp) at kSize
 void write_dataset(const fs::path& dir, std::int64_t cameras, bool observational = true) {
-  const std::int64_t anchors = 40, regimes = 5, n = anchors * regimes;
-  const std::int64_t pixels = cameras * kSize * kSize;
-  core::NpyArray images{core::DType::kU8,
-                        {n, cameras, kSize, kSize},
-                        std::vector<std::uint8_t>(static_cast<std::size_t>(n * pixels))};
-  core::NpyArray angles{core::DType::kF32, {n, 2}, std::vector<std::uint8_t>(n * 8)};
-  core::NpyArray regime{core::DType::kI32, {n}, std::vector<std::uint8_t>(n * 4)};
-  core::NpyArray anchor{core::DType::kI64, {n}, std::vector<std::uint8_t>(n * 8)};
-  for (std::int64_t i = 0; i < n; ++i) {
-    const std::int32_t r = static_cast<std::int32_t>(i % regimes);
-    const std::int64_t a = i / regimes;
-    core::PhiloxStream rng(9, static_cast<std::uint64_t>(i));
-    double q[2];
-    for (int j = 0; j < 2; ++j) {
-      const bool intervened = r != 0 && (r - 1) / 2 == j;
-      const double mean = !intervened ? 0.0 : (r % 2 == 1 ? -0.6 : 0.6);
-      const double sd = intervened ? 0.4 : 0.8;
-      q[j] = mean + sd * rng.truncated_normal((-1.4 - mean) / sd, (1.4 - mean) / sd);
-      const float qf = static_cast<float>(q[j]);
-      std::memcpy(&angles.data[static_cast<std::size_t>(i * 8 + j * 4)], &qf, 4);
-    }
-    for (std::int64_t c = 0; c < cameras; ++c)
-      draw(q, c, &images.data[static_cast<std::size_t>(i * pixels + c * kSize * kSize)]);
-    std::memcpy(&regime.data[static_cast<std::size_t>(i * 4)], &r, 4);
-    std::memcpy(&anchor.data[static_cast<std::size_t>(i * 8)], &a, 8);
-  }
-  const std::vector<core::ColumnSpec> columns = {
-      {"images", core::DType::kU8, {cameras, kSize, kSize}},
-      {"angles", core::DType::kF32, {2}},
-      {"regime", core::DType::kI32, {}},
-      {"anchor", core::DType::kI64, {}}};
-  core::write_dataset_shard(dir, 0, columns, {images, angles, regime, anchor});
-  nlohmann::json cams = nlohmann::json::array(), list = nlohmann::json::array();
-  for (std::int64_t c = 0; c < cameras; ++c)
-    cams.push_back("cam" + std::to_string(c));
-  list.push_back({{"name", "observational"},
-                  {"joint", observational ? nlohmann::json() : nlohmann::json("c")},
-                  {"joint_index", nullptr},
-                  {"intervention", nullptr}});
-  nlohmann::json interventions;
-  for (int j = 0; j < 2; ++j) {
-    for (int k = 1; k <= 2; ++k)
-      list.push_back({{"name", std::string("do(") + kJoints[j] + ")=" + std::to_string(k)},
-                      {"joint", kJoints[j]},
-                      {"joint_index", j},
-                      {"intervention", k}});
-    interventions[kJoints[j]] = {{{"mean", -0.6}, {"std", 0.4}, {"lower", -1.4}, {"upper", 1.4}},
-                                 {{"mean", 0.6}, {"std", 0.4}, {"lower", -1.4}, {"upper", 1.4}}};
-  }
-  const nlohmann::json metadata = {{"cameras", cams},
-                                   {"joint_names", {kJoints[0], kJoints[1]}},
-                                   {"regimes", list},
-                                   {"distribution", {{"interventions", interventions}}}};
-  core::write_dataset_manifest(dir, columns, 1, metadata.dump());
+  test_support::write_two_bar_dataset(dir, cameras, kSize, observational);
 }
 
 // the small preset `name` ("1c-small", or "1c-small/joint" for one AE2 of every joint),
@@ -307,19 +244,6 @@ TEST_P(StandardizedRun, EveryNetworkCarriesTheOneFittedMap) {
   std::vector<float> values(scale.size() / 4);
   std::memcpy(values.data(), scale.data(), scale.size());
   EXPECT_TRUE(std::any_of(values.begin(), values.end(), [](float v) { return v != 1.0f; }));
-}
-
-std::vector<std::uint8_t> file_bytes(const fs::path& p) {
-  std::FILE* f = std::fopen(p.c_str(), "rb");
-  std::vector<std::uint8_t> out;
-  if (f == nullptr)
-    return out;
-  std::uint8_t buf[65536];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, f)) > 0)
-    out.insert(out.end(), buf, buf + n);
-  std::fclose(f);
-  return out;
 }
 
 // Stage 3 trains two AE2s side by side at 2 threads. When one fails (here the test hook

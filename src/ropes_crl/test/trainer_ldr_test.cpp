@@ -1,0 +1,63 @@
+// The trainer's stage 2 at the tiny preset's size: one LDR a joint, its held-out accuracy
+// and the Bayes accuracy of its interventions recorded in run.json; and a run stopped inside
+// the stage, in the second joint's LDR, that resumes to the bytes of a run never stopped
+// (the finished joint is kept, the stopped one restarts).
+#include <stdexcept>
+
+#include "trainer_stage_fixture.hpp"
+
+namespace ropes::crl::test_support {
+namespace {
+
+namespace fs = std::filesystem;
+
+using TrainerLdr = TrainerStage;
+
+TEST_F(TrainerLdr, TrainsOneLdrAJointAndRecordsItAgainstBayes) {
+  const fs::path run = train_to("run", 2, options_);
+  const RunDirectory r = RunDirectory::open(run);
+  EXPECT_FALSE(r.complete());
+  EXPECT_FALSE(fs::exists(run / "ae2.a.safetensors"));
+  for (const char* joint : kJoints) {
+    EXPECT_TRUE(fs::exists(run / (std::string("ldr.") + joint + ".safetensors"))) << joint;
+    const std::optional<LdrRecord> l = r.ldr(joint);
+    ASSERT_TRUE(l.has_value()) << joint;
+    EXPECT_GE(l->held_out_accuracy, 0.0);
+    EXPECT_LE(l->held_out_accuracy, 1.0);
+    // the two interventions (means -0.6 and 0.6, truncated to [-1.4, 1.4]) overlap a
+    // little: Bayes is well above chance and below 1
+    EXPECT_GT(l->bayes_accuracy, 0.7) << joint;
+    EXPECT_LT(l->bayes_accuracy, 1.0) << joint;
+    EXPECT_GE(l->epochs, 1);
+    EXPECT_LE(l->epochs, 2);
+  }
+  std::size_t per_joint[2] = {0, 0};
+  for (const nlohmann::json& rec : records(run, "ldr"))
+    ++per_joint[rec["joint"] == kJoints[0] ? 0 : 1];
+  EXPECT_EQ(per_joint[0], 2u);  // an epoch a record
+  EXPECT_EQ(per_joint[1], 2u);
+}
+
+TEST_F(TrainerLdr, AStopInsideTheStageResumesToTheSameBytes) {
+  const fs::path whole = train_to("whole", 2, options_);
+  TrainOptions stopping = options_;
+  stopping.on_metrics = [](const nlohmann::json& rec) {
+    if (rec.value("stage", "") == "ldr" && rec.value("joint", "") == kJoints[1])
+      throw std::runtime_error("stopped in the LDR of b");
+  };
+  EXPECT_THROW(train_to("stopped", 2, stopping), std::runtime_error);
+  const fs::path run = dir_ / "stopped";
+  EXPECT_TRUE(fs::exists(run / "ldr.a.safetensors"));
+  EXPECT_FALSE(fs::exists(run / "ldr.b.safetensors"));
+  train_to("stopped", 2, options_);
+  for (const char* f : {"ae1.safetensors", "codes.npy", "ldr.a.safetensors", "ldr.b.safetensors"})
+    EXPECT_EQ(file_bytes(run / f), file_bytes(whole / f)) << f << " differs after the resume";
+  const RunDirectory a = RunDirectory::open(run), b = RunDirectory::open(whole);
+  for (const char* joint : kJoints)
+    EXPECT_EQ(a.ldr(joint)->held_out_accuracy, b.ldr(joint)->held_out_accuracy) << joint;
+  // the stopped joint's records are written again, not twice
+  EXPECT_EQ(records(run, "ldr").size(), records(whole, "ldr").size());
+}
+
+}  // namespace
+}  // namespace ropes::crl::test_support
