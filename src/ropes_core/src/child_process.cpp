@@ -118,55 +118,79 @@ ChildProcess::ChildProcess(std::vector<std::string> args, ChildOptions options) 
                             "ChildProcess: cannot run " + args[0]);
   }
   if (pipe_fds[0] >= 0) {
-    reader_ = std::make_unique<Reader>();
+    try {
+      reader_ = std::make_unique<Reader>();
+    } catch (...) {
+      ::close(pipe_fds[0]);
+      ::kill(pid_, SIGKILL);
+      ::waitpid(pid_, nullptr, 0);
+      throw;
+    }
     reader_->fd = pipe_fds[0];
-    reader_->thread = std::thread([this, on_line = std::move(options.on_line)] {
-      std::string line;
-      char buf[4096];
-      ssize_t got;
-      while (true) {
-        pollfd ready{reader_->fd, POLLIN, 0};
-        const int polled = ::poll(&ready, 1, 20);
-        if (polled == 0) {
-          if (reader_->child_ended)
-            break;
-          continue;
-        }
-        if (polled < 0 && errno == EINTR)
-          continue;
-        got = polled < 0 ? -1 : ::read(reader_->fd, buf, sizeof buf);
-        if (got == 0)
+    try {
+      start_reader(std::move(options.on_line));
+    } catch (...) {
+      ::close(pipe_fds[0]);
+      reader_.reset();
+      ::kill(pid_, SIGKILL);
+      ::waitpid(pid_, nullptr, 0);
+      throw;
+    }
+  }
+}
+
+void ChildProcess::start_reader(std::function<void(ChildProcess&, const std::string&)> on_line) {
+  reader_->thread = std::thread([this, on_line = std::move(on_line)] {
+    std::string line;
+    char buf[4096];
+    ssize_t got;
+    while (true) {
+      pollfd ready{reader_->fd, POLLIN, 0};
+      const int polled = ::poll(&ready, 1, 20);
+      if (polled == 0) {
+        if (reader_->child_ended)
           break;
-        if (got < 0) {
-          if (errno == EINTR)
-            continue;
-          break;
-        }
-        {
-          const std::lock_guard<std::mutex> lock(reader_->mutex);
-          reader_->text.append(buf, static_cast<std::size_t>(got));
-        }
-        if (!on_line)
+        continue;
+      }
+      if (polled < 0 && errno == EINTR)
+        continue;
+      got = polled < 0 ? -1 : ::read(reader_->fd, buf, sizeof buf);
+      if (got == 0)
+        break;
+      if (got < 0) {
+        if (errno == EINTR)
           continue;
-        for (ssize_t i = 0; i < got; ++i) {
-          line += buf[i];
-          if (buf[i] == '\n') {
-            on_line(*this, line);
-            line.clear();
-          }
+        break;
+      }
+      {
+        const std::lock_guard<std::mutex> lock(reader_->mutex);
+        reader_->text.append(buf, static_cast<std::size_t>(got));
+      }
+      if (!on_line)
+        continue;
+      for (ssize_t i = 0; i < got; ++i) {
+        line += buf[i];
+        if (buf[i] == '\n') {
+          on_line(*this, line);
+          line.clear();
         }
       }
-      if (on_line && !line.empty())
-        on_line(*this, line);
-    });
-  }
+    }
+    if (on_line && !line.empty())
+      on_line(*this, line);
+  });
 }
 
 ChildProcess::~ChildProcess() {
   if (!ended_ && pid_ > 0) {
-    ::kill(pid_, SIGKILL);
-    int status = 0;
-    ::waitpid(pid_, &status, 0);
+    {
+      const std::lock_guard<std::mutex> lock(reap_mutex_);
+      ::kill(pid_, SIGKILL);
+      int status = 0;
+      while (::waitpid(pid_, &status, 0) < 0 && errno == EINTR) {
+      }
+      ended_ = true;
+    }
   }
   join_reader();
 }
@@ -179,31 +203,56 @@ void ChildProcess::join_reader() {
   }
 }
 
-void ChildProcess::reap(int status) {
-  ended_ = true;
-  status_ = status;
+void ChildProcess::reap() {
+  {
+    const std::lock_guard<std::mutex> lock(reap_mutex_);
+    int status = 0;
+    pid_t r;
+    do
+      r = ::waitpid(pid_, &status, 0);
+    while (r < 0 && errno == EINTR);
+    if (r != pid_)
+      throw std::system_error(errno, std::generic_category(), "ChildProcess: waitpid");
+    status_ = status;
+    ended_ = true;
+  }
   join_reader();
 }
+
+namespace {
+
+// waits (up to blocking forever) until the child has ended, without reaping it: true when it
+// has; a child that cannot be waited for is an error
+bool has_ended(pid_t pid, bool block) {
+  siginfo_t info{};
+  int r;
+  do
+    r = ::waitid(P_PID, static_cast<id_t>(pid), &info, WEXITED | WNOWAIT | (block ? 0 : WNOHANG));
+  while (r < 0 && errno == EINTR);
+  if (r != 0)
+    throw std::system_error(errno, std::generic_category(), "ChildProcess: waitid");
+  return info.si_pid == pid;
+}
+
+int exit_code(int status) {
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+}  // namespace
 
 bool ChildProcess::running() {
   if (ended_ || pid_ <= 0)
     return false;
-  int status = 0;
-  if (::waitpid(pid_, &status, WNOHANG) == pid_)
-    reap(status);
+  if (has_ended(pid_, false))
+    reap();
   return !ended_;
 }
 
 void ChildProcess::signal(int sig) {
+  const std::lock_guard<std::mutex> lock(reap_mutex_);
   if (!ended_ && pid_ > 0)
     ::kill(pid_, sig);
 }
-
-namespace {
-int exit_code(int status) {
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-}  // namespace
 
 int ChildProcess::wait(std::chrono::milliseconds timeout) {
   const auto end = std::chrono::steady_clock::now() + timeout;
@@ -214,12 +263,8 @@ int ChildProcess::wait(std::chrono::milliseconds timeout) {
 
 int ChildProcess::wait() {
   if (!ended_ && pid_ > 0) {
-    int status = 0;
-    pid_t r;
-    do
-      r = ::waitpid(pid_, &status, 0);
-    while (r < 0 && errno == EINTR);
-    reap(status);
+    has_ended(pid_, true);
+    reap();
   }
   return exit_code(status_);
 }

@@ -109,6 +109,20 @@ TEST(ChildProcess, AProgramThatCannotStartIsAnErrorNamingIt) {
   EXPECT_THROW(ChildProcess({}), std::invalid_argument);
 }
 
+TEST(ChildProcess, AChildThatCannotBeWaitedForIsAnErrorNotAnExitStatus) {
+  // with SIGCHLD ignored the system reaps children itself: no status to report
+  struct sigaction ignore {
+  }, before{};
+  ignore.sa_handler = SIG_IGN;
+  ::sigaction(SIGCHLD, &ignore, &before);
+  {
+    ChildProcess child({"/bin/sh", "-c", "exit 3"});
+    EXPECT_THROW(child.wait(), std::system_error);
+  }
+  ::sigaction(SIGCHLD, &before, nullptr);
+  EXPECT_EQ(run_shell("exit 3").rc, 3);
+}
+
 TEST(ChildProcess, AChildStillRunningIsKilledWithItsObject) {
   pid_t pid = -1;
   {

@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -44,7 +45,8 @@ class ChildProcess {
  public:
   /// Starts args[0] (a path; PATH is not searched) with the arguments `args`. Throws
   /// std::system_error naming the program when it cannot be started (no such file, not
-  /// executable), std::invalid_argument for empty `args`.
+  /// executable), std::invalid_argument for empty `args`. running() and wait() throw
+  /// std::system_error when the child cannot be waited for (SIGCHLD ignored).
   explicit ChildProcess(std::vector<std::string> args, ChildOptions options = {});
   /// Kills (SIGKILL) and reaps a child still running, and ends the reading thread.
   ~ChildProcess();
@@ -54,7 +56,7 @@ class ChildProcess {
   pid_t pid() const { return pid_; }
   /// True until the child has ended (and been reaped).
   bool running();
-  /// Sends `sig` to a child still running.
+  /// Sends `sig` to a child not yet reaped (from any thread, the reading one included).
   void signal(int sig);
   /// Waits up to `timeout` for the end: the exit status, or -1 when the child was killed by a
   /// signal or still runs.
@@ -67,10 +69,16 @@ class ChildProcess {
   std::string output() const;
 
  private:
-  void reap(int status);
+  // reaps the child, which has ended (waitid says so), under reap_mutex_
+  void reap();
   void join_reader();
+  // the thread that reads the pipe into output() and hands each line to `on_line`
+  void start_reader(std::function<void(ChildProcess&, const std::string&)> on_line);
 
   pid_t pid_ = -1;
+  // held while the child is reaped and while it is signalled: a signal never reaches a pid
+  // the system has given to another process
+  std::mutex reap_mutex_;
   std::atomic<bool> ended_{false};  // read by signal() from the reading thread
   int status_ = 0;
   struct Reader;
