@@ -4,6 +4,7 @@
 // of their own. Checks what a user would: the report's files, the table's joints, that the
 // run directory was left as the job's training wrote it, and that the calibration the suites
 // fitted is the run's latest and the same as the second evaluation's. consumer_test.sh runs it.
+#include <ropes_core/sha256.hpp>
 #include <ropes_crl/calibration.hpp>
 #include <ropes_crl/run_directory.hpp>
 #include <ropes_eval/main_job.hpp>
@@ -11,11 +12,21 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <string>
 
 namespace fs = std::filesystem;
 
 namespace {
+
+// every file under `dir` with its SHA-256
+std::map<std::string, std::string> listing(const fs::path& dir) {
+  std::map<std::string, std::string> out;
+  for (const fs::directory_entry& e : fs::recursive_directory_iterator(dir))
+    if (e.is_regular_file())
+      out[fs::relative(e.path(), dir).string()] = ropes::core::sha256_file(e.path());
+  return out;
+}
 
 int fail(const std::string& what) {
   std::fprintf(stderr, "pipeline consumer: FAIL: %s\n", what.c_str());
@@ -60,7 +71,10 @@ int main(int argc, char** argv) {
   suites.supervised.clear();
   suites.out = out / "suites";
   suites.cache = r.dir / "test-data";
+  const std::map<std::string, std::string> before = listing(r.run_dir);
   const ropes::eval::SuiteOutcome again = ropes::eval::run_suites(r.run_dir, suites);
+  if (listing(r.run_dir) != before)
+    return fail("run_suites changed the run directory " + r.run_dir.string());
   if (again.report_dir != out / "suites" || !fs::is_regular_file(again.report_dir / "results.json"))
     return fail("run_suites wrote no " + (out / "suites" / "results.json").string());
   const ropes::eval::SuiteResult* id = again.report.find("id");

@@ -1,4 +1,5 @@
 #include "ropes_core/dataset.hpp"
+#include "ropes_core/child_process.hpp"
 #include "ropes_core/npy.hpp"
 
 #include <gtest/gtest.h>
@@ -498,7 +499,7 @@ TEST(DatasetShuffle, DrawsEveryOrderOfThreeEquallyOften) {
 
 // Witness: numpy loads every shard file, and hashlib agrees with the manifest's sha256
 TEST_F(DatasetTest, NumpyLoadsEveryShardFile) {
-  if (std::system("/usr/bin/python3 -c 'import numpy' 2>/dev/null") != 0)
+  if (ropes::core::run_shell("/usr/bin/python3 -c 'import numpy' 2>/dev/null").rc != 0)
     GTEST_SKIP() << "Debian's python3-numpy is not installed (ci/install-deps installs it)";
   write_dataset(dir_);
   // the sums of each column over all rows, as numpy computes them in float64
@@ -549,7 +550,8 @@ TEST_F(DatasetTest, NumpyLoadsEveryShardFile) {
       "print('numpy read', len(m['shards']) * len(m['columns']), 'shard files')\n";
   const std::string command =
       "/usr/bin/python3 -c \"" + script + "\" '" + dir_.string() + "' " + sums;
-  EXPECT_EQ(std::system(command.c_str()), 0) << command;
+  const ropes::core::ChildResult command_run = ropes::core::run_shell(command);
+  EXPECT_EQ(command_run.rc, 0) << command << "\n" << command_run.output;
 }
 
 }  // namespace

@@ -1,4 +1,5 @@
 #include "ropes_core/npy.hpp"
+#include "ropes_core/child_process.hpp"
 #include "ropes_core/file_io.hpp"
 #include "ropes_core/plain_name.hpp"
 
@@ -145,7 +146,7 @@ TEST(TextFile, PlainNamesAreNeverPaths) {
 
 // numpy itself opens what write_npy wrote, with the dtype and values of the fixture it made
 TEST(NpyGolden, NumpyLoadsWhatWeWrite) {
-  if (std::system("/usr/bin/python3 -c 'import numpy' 2>/dev/null") != 0) {
+  if (ropes::core::run_shell("/usr/bin/python3 -c 'import numpy' 2>/dev/null").rc != 0) {
     GTEST_SKIP() << "Debian's python3-numpy is not installed (ci/install-deps installs it)";
   }
   const fs::path dir =
@@ -162,7 +163,8 @@ TEST(NpyGolden, NumpyLoadsWhatWeWrite) {
       "print('numpy read', len(list(ref.glob('*.npy'))), 'files')\n";
   const std::string command =
       "/usr/bin/python3 -c \"" + script + "\" '" + dir.string() + "' '" + kFixtures.string() + "'";
-  EXPECT_EQ(std::system(command.c_str()), 0) << command;
+  const ropes::core::ChildResult command_run = ropes::core::run_shell(command);
+  EXPECT_EQ(command_run.rc, 0) << command << "\n" << command_run.output;
   fs::remove_all(dir);
 }
 

@@ -1,4 +1,5 @@
 #include "ropes_core/sha256.hpp"
+#include "ropes_core/child_process.hpp"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -95,7 +96,7 @@ TEST(Sha256Golden, HashesAFileAsSha256sumDid) {
 // Witness: Python's hashlib on files around the block and padding boundaries and one larger
 // than sha256_file's 1 MiB chunk.
 TEST(Sha256Golden, AgreesWithPythonHashlibOnFiles) {
-  if (std::system("/usr/bin/python3 -c 'import hashlib' 2>/dev/null") != 0)
+  if (ropes::core::run_shell("/usr/bin/python3 -c 'import hashlib' 2>/dev/null").rc != 0)
     GTEST_SKIP() << "/usr/bin/python3 is not installed";
   const fs::path dir =
       fs::temp_directory_path() / ("ropes_sha256_python_" + std::to_string(::getpid()));
@@ -113,7 +114,8 @@ TEST(Sha256Golden, AgreesWithPythonHashlibOnFiles) {
       "/usr/bin/python3 -c \"import hashlib, sys\n"
       "for f in sys.argv[1:]: print(hashlib.sha256(open(f, 'rb').read()).hexdigest())\"" +
       args + " > '" + out.string() + "'";
-  ASSERT_EQ(std::system(command.c_str()), 0) << command;
+  const ropes::core::ChildResult command_run = ropes::core::run_shell(command);
+  ASSERT_EQ(command_run.rc, 0) << command << "\n" << command_run.output;
   std::ifstream in(out);
   const std::string python((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   EXPECT_EQ(ours, python);

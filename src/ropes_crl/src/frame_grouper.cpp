@@ -6,12 +6,13 @@
 
 namespace ropes::crl::stream {
 
-FrameGrouper::FrameGrouper(int cameras, int size, Complete complete, bool log)
+FrameGrouper::FrameGrouper(int cameras, int size, Complete complete, bool log, std::string name)
     : cameras_(cameras),
       size_(size),
       image_(static_cast<std::size_t>(size) * static_cast<std::size_t>(size)),
       complete_(std::move(complete)),
-      log_(log) {}
+      log_(log),
+      name_(std::move(name)) {}
 
 std::string FrameGrouper::problem(const msgs::ImageFrame& f) const {
   const std::size_t n = f.camera_names().size();
@@ -47,8 +48,8 @@ void FrameGrouper::on_frame(const msgs::ImageFrame& f) {
   if (seq + 16 < done_below_) {
     // far behind what was answered: a publisher that started again from 0
     if (log_)
-      std::fprintf(stderr, "ropes-stream: frame sequence restarted at %llu (was at %llu)\n", seq,
-                   done_below_ - 1);
+      std::fprintf(stderr, "%s: frame sequence restarted at %llu (was at %llu)\n", name_.c_str(),
+                   seq, done_below_ - 1);
     groups_.clear();
     done_below_ = 0;
   }
@@ -92,7 +93,7 @@ void FrameGrouper::reject(unsigned long long seq, const std::string& why) {
   ++rejected_;
   ++reasons_[why.substr(0, why.find_first_of("0123456789'"))];
   if (log_ && (rejected_ <= 20 || rejected_ % 1000 == 0))
-    std::fprintf(stderr, "ropes-stream: frame %llu rejected (%llu so far): %s\n", seq,
+    std::fprintf(stderr, "%s: frame %llu rejected (%llu so far): %s\n", name_.c_str(), seq,
                  static_cast<unsigned long long>(rejected_), why.c_str());
 }
 

@@ -1,6 +1,6 @@
 #pragma once
 // The trainer's stages and what they share (private to ropes_crl; trainer.hpp is the API):
-// checkpoints and steps (trainer_common.cpp), the run directory's record (trainer_run.cpp),
+// checkpoints, steps and the run directory's record (trainer_common.cpp),
 // stage 1 AE1 and the codes (stage_ae1.cpp), stage 2 the LDRs (stage_ldr.cpp), stage 3 the
 // AE2s and their thread plan (stage_ae2.cpp). train() in trainer.cpp runs them in order.
 #include <ropes_nn/adam.hpp>

@@ -252,6 +252,15 @@ TEST_F(Pipeline, TinyRunIsDeterministicPinnedAndLearnsTheSparsityPattern) {
             std::string::npos)
       << inside.text;
   EXPECT_EQ(listing(a), before);
+  // results named calibration.json would be overwritten by the calibration beside them
+  const fs::path clash = dir_ / "clash" / "calibration.json";
+  const Output named = run(kEval + " --run " + a.string() + " --data " + (dir_ / "data1").string() +
+                           " --out " + clash.string());
+  EXPECT_EQ(named.rc, 2) << named.text;
+  EXPECT_NE(named.text.find("the calibration is written beside the results as calibration.json"),
+            std::string::npos)
+      << named.text;
+  EXPECT_FALSE(fs::exists(clash.parent_path()));
   EXPECT_NE(e.text.find("| panda_joint6 |"), std::string::npos) << e.text;
   EXPECT_NE(e.text.find("3 repeats of 20 calibration and 20 test samples (of 40 observational"),
             std::string::npos)

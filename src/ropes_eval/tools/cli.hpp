@@ -31,7 +31,7 @@ inline fs::path evaluation_output(const std::string& run_dir, const std::string&
   try {
     return crl::evaluation_output(run_dir, out, name);
   } catch (const std::invalid_argument& e) {
-    throw UsageError(std::string("--out ") + e.what());
+    throw UsageError((out.empty() ? std::string("--run: ") : std::string("--out ")) + e.what());
   }
 }
 

@@ -210,6 +210,10 @@ int run(int argc, char** argv) {
     return 0;
   }
   const fs::path results = tools::evaluation_output(run_dir, out, "results.json");
+  if (results.filename() == "calibration.json")
+    throw UsageError("--out " + out +
+                     ": the calibration is written beside the results as calibration.json; "
+                     "name the results file otherwise");
   const ropes::eval::RunEvaluation ev = ropes::eval::evaluate_run(run_dir, data, options);
   if (results.has_parent_path())
     fs::create_directories(results.parent_path());

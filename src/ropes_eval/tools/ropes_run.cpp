@@ -31,14 +31,15 @@ The ROPES main job on the experiment config CONFIG (a file or an installed name:
   2 train     AE1, one LDR per joint, AE2 with the score-sparsity loss, in OUT/run
               (ropes-train's trainer)
   3 evaluate  the suites (ropes-eval --suite) on test sets generated into OUT/test-data,
-              with the supervised baseline; OUT/report/results.json, results.md and
-              report.html
+              with the supervised baseline; OUT/report/results.json, results.md,
+              report.html and calibration.json (ropes-stream --run OUT/run finds it)
 It ends by printing the per-joint MCC / MSE table beside the paper's numbers and the path of
 report.html. Run it again with the same arguments after an interruption: finished stages
 are kept (OUT/ropes-run.json records them), generation and training resume inside
 themselves (shards, checkpoints), and evaluation runs again on its cached test sets (also
-when asked for with other evaluation arguments). Another config, seed, data seed, dataset
-config or thread count in the same OUT is refused, naming it.
+when asked for with other evaluation arguments). Another config, seed, data seed or dataset
+config in the same OUT is refused, naming it (another thread count is not: every count
+gives the same bytes).
 
 options:
   --out DIR             where everything goes (default runs/<the config's name>)

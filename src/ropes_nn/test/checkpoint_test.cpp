@@ -158,7 +158,10 @@ TEST(Checkpoint, TrainingProcessKilledWithSigkillResumesToTheSameBytes) {
   status = run_child(command(root / "killed"), nullptr, &output);
   ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << output;
   long long resumed_at = -1;
-  ASSERT_EQ(std::sscanf(output.c_str(), "resumed at step %lld", &resumed_at), 1) << output;
+  const std::size_t resumed = output.find("resumed at step ");
+  ASSERT_NE(resumed, std::string::npos) << output;
+  ASSERT_EQ(std::sscanf(output.c_str() + resumed, "resumed at step %lld", &resumed_at), 1)
+      << output;
   EXPECT_GE(resumed_at, 100);
   EXPECT_LT(resumed_at, 2000);
   std::printf("killed after checkpoint 100, resumed at step %lld\n", resumed_at);

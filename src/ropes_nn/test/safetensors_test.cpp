@@ -1,4 +1,5 @@
 #include "ropes_nn/safetensors.hpp"
+#include "ropes_core/child_process.hpp"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -69,7 +70,7 @@ TEST(Safetensors, ModuleRoundTripIsBitIdentical) {
 // only, lists the same names, dtypes, shapes and sums (and, when Debian's python3-torch is
 // there, torch.from_numpy takes them as they are).
 TEST(SafetensorsGolden, APythonReaderOfThePublishedFormatReadsWhatWeWrite) {
-  if (std::system("/usr/bin/python3 -c 'import numpy' 2>/dev/null") != 0) {
+  if (ropes::core::run_shell("/usr/bin/python3 -c 'import numpy' 2>/dev/null").rc != 0) {
     GTEST_SKIP() << "Debian's python3-numpy is not installed";
   }
   const auto net = small_net(3);
@@ -98,7 +99,8 @@ TEST(SafetensorsGolden, APythonReaderOfThePublishedFormatReadsWhatWeWrite) {
   const std::string command = "/usr/bin/python3 " + std::string(ROPES_NN_TOOLS) +
                               "/safetensors_io.py summary '" + path.string() + "' > '" +
                               listing.string() + "'";
-  ASSERT_EQ(std::system(command.c_str()), 0) << command;
+  const ropes::core::ChildResult command_run = ropes::core::run_shell(command);
+  ASSERT_EQ(command_run.rc, 0) << command << "\n" << command_run.output;
   std::ifstream in(listing);
   const std::string printed((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   EXPECT_EQ(printed, expected.str());
@@ -110,7 +112,8 @@ TEST(SafetensorsGolden, APythonReaderOfThePublishedFormatReadsWhatWeWrite) {
   const std::string export_command = "/usr/bin/python3 " + std::string(ROPES_NN_TOOLS) +
                                      "/safetensors_io.py export '" + path.string() + "' '" +
                                      exported.string() + "' > /dev/null";
-  ASSERT_EQ(std::system(export_command.c_str()), 0) << export_command;
+  const ropes::core::ChildResult export_command_run = ropes::core::run_shell(export_command);
+  ASSERT_EQ(export_command_run.rc, 0) << export_command << "\n" << export_command_run.output;
   for (const auto& [name, t] : params) {
     const core::NpyArray a = core::read_npy(exported / (name + ".npy"));
     EXPECT_EQ(a.dtype, core::DType::kF32) << name;
@@ -248,7 +251,8 @@ TEST(Safetensors, ASealedFileIsRefusedWhenAnyByteChanged) {
   std::ofstream(zeroed, std::ios::binary) << image;
   const fs::path sum = scratch("sum.txt");
   const std::string command = "sha256sum '" + zeroed.string() + "' > '" + sum.string() + "'";
-  ASSERT_EQ(std::system(command.c_str()), 0) << command;
+  const ropes::core::ChildResult command_run = ropes::core::run_shell(command);
+  ASSERT_EQ(command_run.rc, 0) << command << "\n" << command_run.output;
   std::ifstream sum_in(sum);
   std::string printed;
   sum_in >> printed;

@@ -65,7 +65,10 @@ struct Calibration {
 };
 
 /// Where ropes-eval writes a run's evaluation when told nowhere else: the directory beside
-/// the run, named after it with "-eval" (runs/a/ -> runs/a-eval). Never inside the run.
+/// the run, named after it with "-eval" (runs/a/ -> runs/a-eval). Never inside the run. The
+/// name is the path's as given: a run reached through a link (runs/latest) has its
+/// evaluations beside the link (runs/latest-eval), so give ropes-eval and ropes-stream the
+/// same path, or ropes-stream --calibration.
 std::filesystem::path default_evaluation_dir(const std::filesystem::path& run_dir);
 
 /// Where an evaluation of the run in `run_dir` writes `name`: `out` when not empty, else

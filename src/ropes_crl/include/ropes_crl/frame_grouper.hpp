@@ -31,8 +31,10 @@ class FrameGrouper {
   using Complete = std::function<void(unsigned long long seq, std::int64_t stamp_ns,
                                       const std::uint8_t* pixels, Clock::time_point received)>;
 
-  /// `log` false: refusals are counted, not printed (the fuzz harness).
-  FrameGrouper(int cameras, int size, Complete complete, bool log = true);
+  /// `log` false: refusals are counted, not printed (the fuzz harness); printed, they go to
+  /// stderr as "<name>: frame N rejected ...".
+  FrameGrouper(int cameras, int size, Complete complete, bool log = true,
+               std::string name = "ropes-stream");
 
   /// Why `f` cannot be used ("" when it can).
   std::string problem(const msgs::ImageFrame& f) const;
@@ -61,6 +63,7 @@ class FrameGrouper {
   std::size_t image_ = 0;
   Complete complete_;
   bool log_ = true;
+  std::string name_;
   std::map<unsigned long long, Group> groups_;
   unsigned long long done_below_ = 0, rejected_ = 0;
   std::map<std::string, unsigned long long> reasons_;

@@ -179,7 +179,10 @@ MainJobResult run_main_job(const MainJobOptions& options,
                                      {"calibration_samples", eval.calibration_samples},
                                      {"test_samples", eval.test_samples},
                                      {"probe_steps", eval.probe_steps},
-                                     {"supervised", options.suites.supervised}};
+                                     {"seed", eval.seed},
+                                     {"occlusion_sizes", options.suites.occlusion_sizes},
+                                     {"supervised", options.suites.supervised},
+                                     {"supervised_max_steps", options.suites.supervised_max_steps}};
   if (finished("evaluate") &&
       state["stages"]["evaluate"].value("arguments", nlohmann::json()) != evaluation) {
     log(3, "other evaluation arguments than last time: evaluating again");
