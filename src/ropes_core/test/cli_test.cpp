@@ -7,6 +7,7 @@
 #include <functional>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace ropes::core {
 namespace {
@@ -57,6 +58,68 @@ int usage_run(int, char**) {
 }
 int failing_run(int, char**) {
   throw std::runtime_error("data/manifest.json: is not JSON");
+}
+
+TEST(Cli, ACommandLineTakesOptionsSwitchesAndPositionalArgumentsInOrder) {
+  std::string run, topic;
+  int threads = 1;
+  bool screen = false;
+  const auto line = [&](bool with_positional) {
+    CommandLine c("usage: tool --run RUN\n");
+    c.option("--run", [&](const std::string& v) { run = v; })
+        .option("--threads",
+                [&](const std::string& v) { threads = parse_number<int>("--threads", v); })
+        .flag("--screen", [&] { screen = true; });
+    if (with_positional)
+      c.positional([&](const std::string& v) {
+        if (!topic.empty())
+          throw UsageError("one TOPIC only");
+        topic = v;
+      });
+    return c;
+  };
+  const auto parse = [&](bool with_positional, std::vector<std::string> args) {
+    args.insert(args.begin(), "tool");
+    std::vector<char*> argv;
+    for (std::string& a : args)
+      argv.push_back(a.data());
+    return line(with_positional).parse(static_cast<int>(argv.size()), argv.data());
+  };
+  const auto error = [&](bool with_positional, std::vector<std::string> args) -> std::string {
+    try {
+      parse(with_positional, std::move(args));
+    } catch (const UsageError& e) {
+      return e.what();
+    }
+    return "(parsed)";
+  };
+  EXPECT_TRUE(parse(false, {"--run", "r", "--screen", "--threads", "4"}));
+  EXPECT_EQ(run, "r");
+  EXPECT_EQ(threads, 4);
+  EXPECT_TRUE(screen);
+  EXPECT_TRUE(parse(true, {"pose_estimates", "--run", "s"}));
+  EXPECT_EQ(topic, "pose_estimates");
+  EXPECT_EQ(run, "s");
+  EXPECT_EQ(error(false, {"--run"}), "'--run' needs a value (see --help)");
+  EXPECT_EQ(error(false, {"--runs", "x"}), "unknown option '--runs' (see --help)");
+  EXPECT_EQ(error(false, {"loose"}), "unknown option 'loose' (see --help)");
+  EXPECT_EQ(error(true, {"another"}), "one TOPIC only");  // topic is set already
+  EXPECT_EQ(error(true, {"--x"}), "unknown option '--x' (see --help)");
+  EXPECT_EQ(error(false, {"--threads", "many"}), "--threads is 'many'; expected an integer");
+  // --help stops the parse before anything after it is looked at
+  testing::internal::CaptureStdout();
+  EXPECT_FALSE(parse(false, {"--help", "--nonsense"}));
+  EXPECT_EQ(testing::internal::GetCapturedStdout(), "usage: tool --run RUN\n");
+  CommandLine live("usage\n", "see ropes-eval --live --help");
+  char* argv[] = {const_cast<char*>("ropes-eval"), const_cast<char*>("--live"),
+                  const_cast<char*>("--window")};
+  live.option("--window", [](const std::string&) {});
+  try {
+    live.parse(3, argv, 2);
+    ADD_FAILURE() << "parsed a flag without its value";
+  } catch (const UsageError& e) {
+    EXPECT_STREQ(e.what(), "'--window' needs a value (see ropes-eval --live --help)");
+  }
 }
 
 TEST(Cli, RunMainPrintsOneLineAndReturnsTheStatusOfItsKind) {

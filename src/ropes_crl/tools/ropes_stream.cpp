@@ -192,41 +192,24 @@ int run(int argc, char** argv) {
   long long estimates = -1, rows = -1;
   int wait_for = 0;
   double rate = 0;
-  for (int i = 1; i < argc; ++i) {
-    const std::string flag = argv[i];
-    if (flag == "--help" || flag == "-h") {
-      std::cout << kUsage;
-      return 0;
-    }
-    if (i + 1 >= argc)
-      throw UsageError("'" + flag + "' needs a value (see --help)");
-    const std::string value = argv[++i];
-    if (flag == "--run")
-      run_dir = value;
-    else if (flag == "--calibration")
-      calibration = value;
-    else if (flag == "--run-id")
-      run_id = value;
-    else if (flag == "--replay")
-      replay_dir = value;
-    else if (flag == "--estimates")
-      estimates = parse_count(flag, value);
-    else if (flag == "--rows")
-      rows = parse_count(flag, value);
-    else if (flag == "--wait-for-subscribers")
-      wait_for = ropes::core::parse_number<int>(flag, value, 1, 1000);
-    else if (flag == "--rate")
-      rate = parse_rate(flag, value);
-    else if (flag == "--frame-qos") {
-      try {
-        frame_qos = msgs::qos_from_name(value);
-      } catch (const std::invalid_argument& e) {
-        throw UsageError(std::string("--frame-qos: ") + e.what());
-      }
-    } else {
-      throw UsageError("unknown option '" + flag + "' (see --help)");
-    }
-  }
+  ropes::core::CommandLine command_line(kUsage);
+  command_line.option("--run", [&](const std::string& v) { run_dir = v; })
+      .option("--calibration", [&](const std::string& v) { calibration = v; })
+      .option("--run-id", [&](const std::string& v) { run_id = v; })
+      .option("--replay", [&](const std::string& v) { replay_dir = v; })
+      .option("--estimates",
+              [&](const std::string& v) { estimates = parse_count("--estimates", v); })
+      .option("--rows", [&](const std::string& v) { rows = parse_count("--rows", v); })
+      .option("--wait-for-subscribers",
+              [&](const std::string& v) {
+                wait_for = ropes::core::parse_number<int>("--wait-for-subscribers", v, 1, 1000);
+              })
+      .option("--rate", [&](const std::string& v) { rate = parse_rate("--rate", v); })
+      .option("--frame-qos", [&](const std::string& v) {
+        frame_qos = ropes::core::for_flag("--frame-qos", [&] { return msgs::qos_from_name(v); });
+      });
+  if (!command_line.parse(argc, argv))
+    return 0;
   if (run_dir.empty())
     throw UsageError("--run is required (see --help)");
   auto estimator = ropes::crl::Estimator::load(run_dir);

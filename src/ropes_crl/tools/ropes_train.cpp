@@ -195,55 +195,43 @@ int run(int argc, char** argv) {
   std::vector<std::string> sets;
   ropes::crl::TrainOptions options;
   bool status = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string flag = argv[i];
-    if (flag == "--help" || flag == "-h") {
-      std::cout << kUsage;
-      return 0;
-    }
-    if (flag == "--status") {
+  ropes::core::CommandLine command_line(kUsage);
+  command_line
+      .flag("--status",
+            [&] {
 #ifdef ROPES_TRAIN_STATUS
-      status = true;
-      continue;
+              status = true;
 #else
-      throw UsageError("--status: this ropes-train was built without Fast DDS (ROPES_WITH_DDS)");
+              throw UsageError(
+                  "--status: this ropes-train was built without Fast DDS (ROPES_WITH_DDS)");
 #endif
-    }
-    if (i + 1 >= argc)
-      throw UsageError("'" + flag + "' needs a value (see --help)");
-    const std::string value = argv[++i];
-    if (flag == "--config")
-      config_arg = value;
-    else if (flag == "--data")
-      data = value;
-    else if (flag == "--out")
-      out = value;
-    else if (flag == "--threads")
-      options.threads = parse_number<int>(flag, value);
-    else if (flag == "--seed")
-      options.seed = parse_number<std::uint64_t>(flag, value);
-    else if (flag == "--set")
-      sets.push_back(value);
-    else if (flag == "--sweep-lambda")
-      sweep_lambda = value;
-    else if (flag == "--sweep-seeds")
-      sweep_seeds = value;
-    else if (flag == "--progress")
-      progress = value;
-    else if (flag == "--stages") {
-      if (value == "ae1")
-        options.last_stage = 1;
-      else if (value == "ae1,ldr")
-        options.last_stage = 2;
-      else if (value == "ae1,ldr,ae2")
-        options.last_stage = 3;
-      else
-        throw UsageError("--stages is '" + value +
-                         "'; expected ae1, ae1,ldr or ae1,ldr,ae2 (each stage needs the ones "
-                         "before it)");
-    } else
-      throw UsageError("unknown option '" + flag + "' (see --help)");
-  }
+            })
+      .option("--config", [&](const std::string& v) { config_arg = v; })
+      .option("--data", [&](const std::string& v) { data = v; })
+      .option("--out", [&](const std::string& v) { out = v; })
+      .option("--threads",
+              [&](const std::string& v) { options.threads = parse_number<int>("--threads", v); })
+      .option(
+          "--seed",
+          [&](const std::string& v) { options.seed = parse_number<std::uint64_t>("--seed", v); })
+      .option("--set", [&](const std::string& v) { sets.push_back(v); })
+      .option("--sweep-lambda", [&](const std::string& v) { sweep_lambda = v; })
+      .option("--sweep-seeds", [&](const std::string& v) { sweep_seeds = v; })
+      .option("--progress", [&](const std::string& v) { progress = v; })
+      .option("--stages", [&](const std::string& value) {
+        if (value == "ae1")
+          options.last_stage = 1;
+        else if (value == "ae1,ldr")
+          options.last_stage = 2;
+        else if (value == "ae1,ldr,ae2")
+          options.last_stage = 3;
+        else
+          throw UsageError("--stages is '" + value +
+                           "'; expected ae1, ae1,ldr or ae1,ldr,ae2 (each stage needs the ones "
+                           "before it)");
+      });
+  if (!command_line.parse(argc, argv))
+    return 0;
   if (config_arg.empty() || data.empty() || out.empty())
     throw UsageError("--config, --data and --out are required (see --help)");
   if (options.threads < 1 || options.threads > 256)

@@ -200,28 +200,18 @@ int run_live(int argc, char** argv) {
   double every = 1, timeout = 0;
   long long limit = -1;
   std::string out = "ropes-eval-live.json";
-  for (int i = 2; i < argc; ++i) {
-    const std::string flag = argv[i];
-    if (flag == "--help" || flag == "-h") {
-      std::cout << kLiveUsage;
-      return 0;
-    }
-    if (i + 1 >= argc)
-      throw UsageError("'" + flag + "' needs a value (see ropes-eval --live --help)");
-    const std::string value = argv[++i];
-    if (flag == "--window")
-      window = parse_number<std::size_t>(flag, value);
-    else if (flag == "--every")
-      every = parse_number<double>(flag, value);
-    else if (flag == "--estimates")
-      limit = parse_number<long long>(flag, value);
-    else if (flag == "--timeout")
-      timeout = parse_number<double>(flag, value);
-    else if (flag == "--out")
-      out = value;
-    else
-      throw UsageError("unknown option '" + flag + "' with --live (see ropes-eval --live --help)");
-  }
+  ropes::core::CommandLine command_line(kLiveUsage, "see ropes-eval --live --help");
+  command_line
+      .option("--window",
+              [&](const std::string& v) { window = parse_number<std::size_t>("--window", v); })
+      .option("--every", [&](const std::string& v) { every = parse_number<double>("--every", v); })
+      .option("--estimates",
+              [&](const std::string& v) { limit = parse_number<long long>("--estimates", v); })
+      .option("--timeout",
+              [&](const std::string& v) { timeout = parse_number<double>("--timeout", v); })
+      .option("--out", [&](const std::string& v) { out = v; });
+  if (!command_line.parse(argc, argv, 2))
+    return 0;
   if (window < 3)
     throw UsageError("--window is " + std::to_string(window) + "; expected at least 3");
   if (!(every > 0) || timeout < 0 || (limit != -1 && limit < 1))

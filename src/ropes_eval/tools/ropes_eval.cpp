@@ -107,60 +107,62 @@ int run(int argc, char** argv) {
     throw UsageError("--live: this ropes-eval was built without Fast DDS (ROPES_WITH_DDS)");
 #endif
   }
-  for (int i = 1; i < argc; ++i) {
-    const std::string flag = argv[i];
-    if (flag == "--help" || flag == "-h") {
-      std::cout << kUsage;
-      return 0;
-    }
-    if (flag == "--screen") {
-      screen = true;
-      continue;
-    }
-    if (i + 1 >= argc)
-      throw UsageError("'" + flag + "' needs a value (see --help)");
-    const std::string value = argv[++i];
-    if (flag == "--run")
-      run_dir = value;
-    else if (flag == "--data")
-      data = value;
-    else if (flag == "--out")
-      out = value;
-    else if (flag == "--repeats")
-      options.repeats = parse_number<std::int64_t>(flag, value);
-    else if (flag == "--calibration-samples")
-      options.calibration_samples = parse_number<std::int64_t>(flag, value);
-    else if (flag == "--test-samples")
-      options.test_samples = parse_number<std::int64_t>(flag, value);
-    else if (flag == "--seed")
-      options.seed = parse_number<std::uint64_t>(flag, value);
-    else if (flag == "--probe-steps")
-      options.probe_steps = parse_number<std::int64_t>(flag, value);
-    else if (flag == "--threads")
-      threads = parse_number<int>(flag, value);
-    else if (flag == "--suite") {
-      suite_args.suites = tools::parse_suites(flag, value);
-    } else if (flag == "--data-cache")
-      suite_args.cache = value;
-    else if (flag == "--test-seed")
-      suite_args.test_seed = parse_number<std::uint64_t>(flag, value);
-    else if (flag == "--occlusion-sizes") {
-      suite_args.occlusion_sizes.clear();
-      for (const std::string& v : split_list(flag, value)) {
-        const auto size = parse_number<std::int64_t>(flag, v);
-        if (size < 1)
-          throw UsageError("--occlusion-sizes has " + v + "; expected sides of at least 1 px");
-        suite_args.occlusion_sizes.push_back(size);
-      }
-    } else if (flag == "--supervised") {
-      suite_args.supervised = tools::parse_supervised(flag, value);
-    } else if (flag == "--supervised-max-steps") {
-      suite_args.supervised_max_steps = parse_number<std::int64_t>(flag, value);
-      if (suite_args.supervised_max_steps < 1)
-        throw UsageError("--supervised-max-steps is " + value + "; expected at least 1");
-    } else
-      throw UsageError("unknown option '" + flag + "' (see --help)");
-  }
+  ropes::core::CommandLine command_line(kUsage);
+  command_line.flag("--screen", [&] { screen = true; })
+      .option("--run", [&](const std::string& v) { run_dir = v; })
+      .option("--data", [&](const std::string& v) { data = v; })
+      .option("--out", [&](const std::string& v) { out = v; })
+      .option("--repeats",
+              [&](const std::string& v) {
+                options.repeats = parse_number<std::int64_t>("--repeats", v);
+              })
+      .option("--calibration-samples",
+              [&](const std::string& v) {
+                options.calibration_samples =
+                    parse_number<std::int64_t>("--calibration-samples", v);
+              })
+      .option("--test-samples",
+              [&](const std::string& v) {
+                options.test_samples = parse_number<std::int64_t>("--test-samples", v);
+              })
+      .option(
+          "--seed",
+          [&](const std::string& v) { options.seed = parse_number<std::uint64_t>("--seed", v); })
+      .option("--probe-steps",
+              [&](const std::string& v) {
+                options.probe_steps = parse_number<std::int64_t>("--probe-steps", v);
+              })
+      .option("--threads",
+              [&](const std::string& v) { threads = parse_number<int>("--threads", v); })
+      .option("--suite",
+              [&](const std::string& v) { suite_args.suites = tools::parse_suites("--suite", v); })
+      .option("--data-cache", [&](const std::string& v) { suite_args.cache = v; })
+      .option("--test-seed",
+              [&](const std::string& v) {
+                suite_args.test_seed = parse_number<std::uint64_t>("--test-seed", v);
+              })
+      .option("--occlusion-sizes",
+              [&](const std::string& value) {
+                const std::string flag = "--occlusion-sizes";
+                suite_args.occlusion_sizes.clear();
+                for (const std::string& v : split_list(flag, value)) {
+                  const auto size = parse_number<std::int64_t>(flag, v);
+                  if (size < 1)
+                    throw UsageError(flag + " has " + v + "; expected sides of at least 1 px");
+                  suite_args.occlusion_sizes.push_back(size);
+                }
+              })
+      .option("--supervised",
+              [&](const std::string& v) {
+                suite_args.supervised = tools::parse_supervised("--supervised", v);
+              })
+      .option("--supervised-max-steps", [&](const std::string& v) {
+        suite_args.supervised_max_steps = parse_number<std::int64_t>("--supervised-max-steps", v);
+        if (suite_args.supervised_max_steps < 1)
+          throw UsageError("--supervised-max-steps is " + v + "; expected at least 1");
+      });
+  if (!command_line.parse(argc, argv))
+    return 0;
   if (screen && (!data.empty() || !suite_args.suites.empty()))
     throw UsageError("--screen takes no --data or --suite: it reads the run's training set");
   if (run_dir.empty() || (data.empty() && suite_args.suites.empty() && !screen))

@@ -19,7 +19,6 @@ namespace {
 namespace fs = std::filesystem;
 namespace tools = ropes::eval::tools;
 using tools::parse_number;
-using tools::split_list;
 using tools::UsageError;
 
 const char* const kUsage = R"(usage: ropes-run CONFIG [options]
@@ -59,50 +58,51 @@ int run(int argc, char** argv) {
   ropes::eval::MainJobOptions job;
   std::string progress = "auto";
   ropes::eval::RunEvaluationOptions& eval = job.suites.evaluation;
-  for (int i = 1; i < argc; ++i) {
-    const std::string flag = argv[i];
-    if (flag == "--help" || flag == "-h") {
-      std::cout << kUsage;
-      return 0;
-    }
-    if (flag.rfind("--", 0) != 0) {
-      if (!job.config.empty())
-        throw UsageError("one CONFIG, got '" + job.config + "' and '" + flag + "' (see --help)");
-      job.config = flag;
-      continue;
-    }
-    if (i + 1 >= argc)
-      throw UsageError("'" + flag + "' needs a value (see --help)");
-    const std::string value = argv[++i];
-    if (flag == "--out")
-      job.out = value;
-    else if (flag == "--seed")
-      job.seed = parse_number<std::uint64_t>(flag, value);
-    else if (flag == "--data-seed")
-      job.data_seed = parse_number<std::uint64_t>(flag, value);
-    else if (flag == "--dataset-config")
-      job.dataset_config = value;
-    else if (flag == "--suite")
-      job.suites.suites = tools::parse_suites(flag, value);
-    else if (flag == "--repeats")
-      eval.repeats = parse_number<std::int64_t>(flag, value);
-    else if (flag == "--calibration-samples")
-      eval.calibration_samples = parse_number<std::int64_t>(flag, value);
-    else if (flag == "--test-samples")
-      eval.test_samples = parse_number<std::int64_t>(flag, value);
-    else if (flag == "--supervised")
-      job.suites.supervised = tools::parse_supervised(flag, value);
-    else if (flag == "--probe-steps")
-      eval.probe_steps = parse_number<std::int64_t>(flag, value);
-    else if (flag == "--threads")
-      job.threads = parse_number<int>(flag, value);
-    else if (flag == "--progress") {
-      if (value != "bar" && value != "lines" && value != "auto")
-        throw UsageError("--progress is '" + value + "'; expected bar, lines or auto");
-      progress = value;
-    } else
-      throw UsageError("unknown option '" + flag + "' (see --help)");
-  }
+  ropes::core::CommandLine command_line(kUsage);
+  command_line
+      .positional([&](const std::string& v) {
+        if (!job.config.empty())
+          throw UsageError("one CONFIG, got '" + job.config + "' and '" + v + "' (see --help)");
+        job.config = v;
+      })
+      .option("--out", [&](const std::string& v) { job.out = v; })
+      .option("--seed",
+              [&](const std::string& v) { job.seed = parse_number<std::uint64_t>("--seed", v); })
+      .option("--data-seed",
+              [&](const std::string& v) {
+                job.data_seed = parse_number<std::uint64_t>("--data-seed", v);
+              })
+      .option("--dataset-config", [&](const std::string& v) { job.dataset_config = v; })
+      .option("--suite",
+              [&](const std::string& v) { job.suites.suites = tools::parse_suites("--suite", v); })
+      .option(
+          "--repeats",
+          [&](const std::string& v) { eval.repeats = parse_number<std::int64_t>("--repeats", v); })
+      .option("--calibration-samples",
+              [&](const std::string& v) {
+                eval.calibration_samples = parse_number<std::int64_t>("--calibration-samples", v);
+              })
+      .option("--test-samples",
+              [&](const std::string& v) {
+                eval.test_samples = parse_number<std::int64_t>("--test-samples", v);
+              })
+      .option("--supervised",
+              [&](const std::string& v) {
+                job.suites.supervised = tools::parse_supervised("--supervised", v);
+              })
+      .option("--probe-steps",
+              [&](const std::string& v) {
+                eval.probe_steps = parse_number<std::int64_t>("--probe-steps", v);
+              })
+      .option("--threads",
+              [&](const std::string& v) { job.threads = parse_number<int>("--threads", v); })
+      .option("--progress", [&](const std::string& v) {
+        if (v != "bar" && v != "lines" && v != "auto")
+          throw UsageError("--progress is '" + v + "'; expected bar, lines or auto");
+        progress = v;
+      });
+  if (!command_line.parse(argc, argv))
+    return 0;
   if (job.config.empty())
     throw UsageError("CONFIG is required (see --help)");
   if (job.threads < 1 || job.threads > 256)

@@ -175,37 +175,27 @@ int run(int argc, char** argv) {
   bool json = false;
   long long count = -1;
   double timeout_s = 0;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "-h" || a == "--help") {
-      std::cout << kUsage;
-      return 0;
-    }
-    if (a == "--json") {
-      json = true;
-      continue;
-    }
-    if (a.rfind("--", 0) == 0) {
-      if (i + 1 >= argc)
-        throw UsageError("'" + a + "' needs a value (see --help)");
-      const std::string v = argv[++i];
-      if (a == "--count")
-        count =
-            ropes::core::parse_number<long long>(a, v, 1, std::numeric_limits<long long>::max());
-      else if (a == "--timeout")
-        timeout_s = ropes::core::parse_number<double>(a, v);
-      else if (a == "--name")
-        name = v;
-      else
-        throw UsageError("unknown option '" + a + "' (see --help)");
-      if (a == "--timeout" && !(timeout_s > 0))
-        throw UsageError(a + " is '" + v + "'; expected a positive number");
-      continue;
-    }
-    if (!topic.empty())
-      throw UsageError("one TOPIC only (got '" + topic + "' and '" + a + "')");
-    topic = a;
-  }
+  ropes::core::CommandLine command_line(kUsage);
+  command_line.flag("--json", [&] { json = true; })
+      .option("--count",
+              [&](const std::string& v) {
+                count = ropes::core::parse_number<long long>("--count", v, 1,
+                                                             std::numeric_limits<long long>::max());
+              })
+      .option("--timeout",
+              [&](const std::string& v) {
+                timeout_s = ropes::core::parse_number<double>("--timeout", v);
+                if (!(timeout_s > 0))
+                  throw UsageError("--timeout is '" + v + "'; expected a positive number");
+              })
+      .option("--name", [&](const std::string& v) { name = v; })
+      .positional([&](const std::string& a) {
+        if (!topic.empty())
+          throw UsageError("one TOPIC only (got '" + topic + "' and '" + a + "')");
+        topic = a;
+      });
+  if (!command_line.parse(argc, argv))
+    return 0;
   if (topic == "image_frames")
     return echo<ImageFrame>(name, json, count, timeout_s);
   if (topic == "joint_states")

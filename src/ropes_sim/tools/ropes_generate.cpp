@@ -45,54 +45,53 @@ int run(int argc, char** argv) {
   std::int64_t anchors = -1, per_shard = -1;
   int scale = 2;
   ropes::sim::GenerateOptions options;
-  for (int i = 1; i < argc; ++i) {
-    const std::string flag = argv[i];
-    if (flag == "--help" || flag == "-h") {
-      std::cout << kUsage;
-      return 0;
-    }
-    if (i + 1 >= argc)
-      throw UsageError("'" + flag + "' needs a value (see --help)");
-    const std::string value = argv[++i];
-    if (flag == "--config") {
-      config_arg = value;
-    } else if (flag == "--out") {
-      out = value;
-    } else if (flag == "--seed") {
-      seed = parse_number<std::uint64_t>(flag, value, 0, UINT64_MAX);
-      have_seed = true;
-    } else if (flag == "--anchors") {
-      anchors = parse_number<std::int64_t>(flag, value, 1, 1LL << 40);
-    } else if (flag == "--anchors-per-shard") {
-      per_shard = parse_number<std::int64_t>(flag, value, 1, 1LL << 20);
-    } else if (flag == "--threads") {
-      options.threads = parse_number<int>(flag, value, 1, 256);
-    } else if (flag == "--shard") {
-      const auto slash = value.find('/');
-      if (slash == std::string::npos)
-        throw UsageError("--shard is '" + value + "'; expected k/N");
-      const std::string expected = "--shard is '" + value + "'; expected k/N with 0 <= k < N";
-      int k = -1, n = 0;
-      const char* text = value.c_str();
-      const auto a = std::from_chars(text, text + slash, k);
-      const auto b = std::from_chars(text + slash + 1, text + value.size(), n);
-      if (a.ec != std::errc() || a.ptr != text + slash || b.ec != std::errc() ||
-          b.ptr != text + value.size() || k < 0 || n < 1 || k >= n)
-        throw UsageError(expected);
-      options.shard_index = k;
-      options.shard_count = n;
-    } else if (flag == "--preview") {
-      preview = value;
-    } else if (flag == "--preview-extremes") {
-      extremes = value;
-    } else if (flag == "--anchor") {
-      anchor = parse_number<std::uint64_t>(flag, value, 0, UINT64_MAX);
-    } else if (flag == "--scale") {
-      scale = parse_number<int>(flag, value, 1, 16);
-    } else {
-      throw UsageError("unknown option '" + flag + "' (see --help)");
-    }
-  }
+  ropes::core::CommandLine command_line(kUsage);
+  command_line.option("--config", [&](const std::string& v) { config_arg = v; })
+      .option("--out", [&](const std::string& v) { out = v; })
+      .option("--seed",
+              [&](const std::string& v) {
+                seed = parse_number<std::uint64_t>("--seed", v, 0, UINT64_MAX);
+                have_seed = true;
+              })
+      .option("--anchors",
+              [&](const std::string& v) {
+                anchors = parse_number<std::int64_t>("--anchors", v, 1, 1LL << 40);
+              })
+      .option("--anchors-per-shard",
+              [&](const std::string& v) {
+                per_shard = parse_number<std::int64_t>("--anchors-per-shard", v, 1, 1LL << 20);
+              })
+      .option("--threads",
+              [&](const std::string& v) {
+                options.threads = parse_number<int>("--threads", v, 1, 256);
+              })
+      .option("--shard",
+              [&](const std::string& value) {
+                const auto slash = value.find('/');
+                if (slash == std::string::npos)
+                  throw UsageError("--shard is '" + value + "'; expected k/N");
+                const std::string expected =
+                    "--shard is '" + value + "'; expected k/N with 0 <= k < N";
+                int k = -1, n = 0;
+                const char* text = value.c_str();
+                const auto a = std::from_chars(text, text + slash, k);
+                const auto b = std::from_chars(text + slash + 1, text + value.size(), n);
+                if (a.ec != std::errc() || a.ptr != text + slash || b.ec != std::errc() ||
+                    b.ptr != text + value.size() || k < 0 || n < 1 || k >= n)
+                  throw UsageError(expected);
+                options.shard_index = k;
+                options.shard_count = n;
+              })
+      .option("--preview", [&](const std::string& v) { preview = v; })
+      .option("--preview-extremes", [&](const std::string& v) { extremes = v; })
+      .option("--anchor",
+              [&](const std::string& v) {
+                anchor = parse_number<std::uint64_t>("--anchor", v, 0, UINT64_MAX);
+              })
+      .option("--scale",
+              [&](const std::string& v) { scale = parse_number<int>("--scale", v, 1, 16); });
+  if (!command_line.parse(argc, argv))
+    return 0;
   if (config_arg.empty())
     throw UsageError("--config is required (see --help)");
   auto config = ropes::sim::DatasetConfig::load(find_config(config_arg));

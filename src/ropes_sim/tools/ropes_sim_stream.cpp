@@ -48,41 +48,31 @@ int run(int argc, char** argv) {
   int wait_for = 0;
   bool split = false;
   msgs::Qos frame_qos = msgs::Qos::sensor;
-  for (int i = 1; i < argc; ++i) {
-    const std::string flag = argv[i];
-    if (flag == "--help" || flag == "-h") {
-      std::cout << kUsage;
-      return 0;
-    }
-    if (flag == "--split-cameras") {
-      split = true;
-      continue;
-    }
-    if (i + 1 >= argc)
-      throw UsageError("'" + flag + "' needs a value (see --help)");
-    const std::string value = argv[++i];
-    if (flag == "--config")
-      config_arg = value;
-    else if (flag == "--rate")
-      rate = parse_number<double>(flag, value, 0.01, 10000);
-    else if (flag == "--segment")
-      segment = parse_number<double>(flag, value, 0.01, 3600);
-    else if (flag == "--seed")
-      seed = parse_number<std::uint64_t>(flag, value, 0, UINT64_MAX);
-    else if (flag == "--frames")
-      frames = parse_number<long long>(flag, value, 1, 1LL << 40);
-    else if (flag == "--wait-for-subscribers")
-      wait_for = parse_number<int>(flag, value, 0, 1000);
-    else if (flag == "--frame-qos") {
-      try {
-        frame_qos = msgs::qos_from_name(value);
-      } catch (const std::invalid_argument& e) {
-        throw UsageError(std::string("--frame-qos: ") + e.what());
-      }
-    } else {
-      throw UsageError("unknown option '" + flag + "' (see --help)");
-    }
-  }
+  ropes::core::CommandLine command_line(kUsage);
+  command_line.flag("--split-cameras", [&] { split = true; })
+      .option("--config", [&](const std::string& v) { config_arg = v; })
+      .option("--rate",
+              [&](const std::string& v) { rate = parse_number<double>("--rate", v, 0.01, 10000); })
+      .option(
+          "--segment",
+          [&](const std::string& v) { segment = parse_number<double>("--segment", v, 0.01, 3600); })
+      .option("--seed",
+              [&](const std::string& v) {
+                seed = parse_number<std::uint64_t>("--seed", v, 0, UINT64_MAX);
+              })
+      .option("--frames",
+              [&](const std::string& v) {
+                frames = parse_number<long long>("--frames", v, 1, 1LL << 40);
+              })
+      .option("--wait-for-subscribers",
+              [&](const std::string& v) {
+                wait_for = parse_number<int>("--wait-for-subscribers", v, 0, 1000);
+              })
+      .option("--frame-qos", [&](const std::string& v) {
+        frame_qos = ropes::core::for_flag("--frame-qos", [&] { return msgs::qos_from_name(v); });
+      });
+  if (!command_line.parse(argc, argv))
+    return 0;
   if (config_arg.empty())
     throw UsageError("--config is required (see --help)");
   const auto config = ropes::sim::DatasetConfig::load(find_config(config_arg));

@@ -1,14 +1,18 @@
 #pragma once
 /// @file cli.hpp
 /// What every executable of the workspace does the same way on its command line: usage errors,
-/// number flags, and one `main` that turns an exception into one line and an exit status.
+/// number flags, the flags themselves, and one `main` that turns an exception into one line
+/// and an exit status.
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <limits>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
+#include <utility>
+#include <vector>
 
 namespace ropes::core {
 
@@ -70,6 +74,44 @@ T parse_number(const std::string& flag, const std::string& text, T lo, T hi) {
     throw fail();
   return value;
 }
+
+/// f() for the value of flag `flag`: its std::invalid_argument becomes a UsageError
+/// "FLAG: MESSAGE" (for the parsers of other libraries, which know no command line).
+template <typename F>
+auto for_flag(const std::string& flag, F&& f) -> decltype(f()) {
+  try {
+    return f();
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(flag + ": " + e.what());
+  }
+}
+
+/// A tool's command line: options with a value ("--run DIR"), switches ("--screen") and, for
+/// a tool that takes them, positional arguments; -h or --help prints the usage. Every tool's
+/// mistakes read the same: "'--run' needs a value (see --help)", "unknown option '--x' (see
+/// --help)".
+class CommandLine {
+ public:
+  /// `usage` is what --help prints; `help` is how the messages point to it.
+  explicit CommandLine(std::string usage, std::string help = "see --help");
+  /// --flag VALUE: `take` gets the value; it may throw UsageError (parse_number does).
+  CommandLine& option(const std::string& flag, std::function<void(const std::string&)> take);
+  /// --flag alone.
+  CommandLine& flag(const std::string& flag, std::function<void()> set);
+  /// The arguments that do not start with "--" (without this they are unknown options);
+  /// `take` may throw UsageError (one positional argument only, say).
+  CommandLine& positional(std::function<void(const std::string&)> take);
+  /// Parses argv[first] to argv[argc - 1] in order. Returns false when -h or --help came (the
+  /// usage is printed on stdout; the tool then exits 0), true otherwise; throws UsageError for
+  /// an unknown option or a missing value, and passes on what `take` and `set` throw.
+  bool parse(int argc, char** argv, int first = 1) const;
+
+ private:
+  std::string usage_, help_;
+  std::vector<std::pair<std::string, std::function<void(const std::string&)>>> options_;
+  std::vector<std::pair<std::string, std::function<void()>>> flags_;
+  std::function<void(const std::string&)> positional_;
+};
 
 /// A tool's main: returns run(argc, argv). An exception escaping it is printed on stderr as
 /// one line, "NAME: error: MESSAGE", and the status is 2 for a UsageError, 1 for any other
