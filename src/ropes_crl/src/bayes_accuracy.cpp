@@ -10,21 +10,9 @@
 
 namespace ropes::crl {
 
-namespace {
-void check(const TruncatedNormal& d) {
-  if (!(d.std > 0) || !(d.lower < d.upper) || !std::isfinite(d.mean))
-    throw std::invalid_argument("bayes_accuracy: expected std > 0 and lower < upper, got mean " +
-                                std::to_string(d.mean) + ", std " + std::to_string(d.std) + ", [" +
-                                std::to_string(d.lower) + ", " + std::to_string(d.upper) + "]");
-}
-double normal_cdf(double x) {
-  return 0.5 * std::erfc(-x / std::sqrt(2.0));
-}
-}  // namespace
-
-TruncatedNormal TruncatedNormal::from_json(const nlohmann::json& j, const std::string& where) {
-  TruncatedNormal d;
-  d.mean = detail::get_double(j, where, "mean");
+TruncatedNormal truncated_normal_from_json(const nlohmann::json& j, const std::string& where) {
+  const double mean = detail::get_double(j, where, "mean");
+  double sd = 0;
   // the paper's TN(mean, x) takes the variance x (ropes_sim's distribution files say
   // `variance`); `std` is read too, never both
   const bool has_variance = j.is_object() && j.contains("variance");
@@ -42,33 +30,22 @@ TruncatedNormal TruncatedNormal::from_json(const nlohmann::json& j, const std::s
       throw std::invalid_argument(where + ".variance: expected a finite number > 0, got " +
                                   got.str());
     }
-    d.std = std::sqrt(variance);
+    sd = std::sqrt(variance);
   } else {
-    d.std = detail::get_double(j, where, "std");
+    sd = detail::get_double(j, where, "std");
   }
-  d.lower = detail::get_double(j, where, "lower");
-  d.upper = detail::get_double(j, where, "upper");
+  const double lower = detail::get_double(j, where, "lower");
+  const double upper = detail::get_double(j, where, "upper");
   try {
-    check(d);
+    return TruncatedNormal(mean, sd, lower, upper);
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument(where + ": " + e.what());
   }
-  return d;
-}
-
-double TruncatedNormal::pdf(double x) const {
-  if (x < lower || x > upper)
-    return 0.0;
-  const double mass = normal_cdf((upper - mean) / std) - normal_cdf((lower - mean) / std);
-  const double u = (x - mean) / std;
-  return std::exp(-0.5 * u * u) / (std * std::sqrt(2.0 * M_PI) * mass);
 }
 
 double bayes_accuracy(const TruncatedNormal& p, const TruncatedNormal& q) {
-  check(p);
-  check(q);
   // composite Simpson on each piece between the supports' ends (the densities jump there)
-  std::vector<double> cuts = {p.lower, p.upper, q.lower, q.upper};
+  std::vector<double> cuts = {p.lower(), p.upper(), q.lower(), q.upper()};
   std::sort(cuts.begin(), cuts.end());
   const int n = 20000;
   double total = 0;

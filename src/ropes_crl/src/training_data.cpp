@@ -124,8 +124,8 @@ TrainingData TrainingData::open(const ExperimentConfig& config, const fs::path& 
                                   ": metadata.distribution.interventions has no two entries for '" +
                                   joint + "'");
     j.bayes_accuracy = bayes_accuracy(
-        TruncatedNormal::from_json(interventions[joint][0], "interventions." + joint + "[0]"),
-        TruncatedNormal::from_json(interventions[joint][1], "interventions." + joint + "[1]"));
+        truncated_normal_from_json(interventions[joint][0], "interventions." + joint + "[0]"),
+        truncated_normal_from_json(interventions[joint][1], "interventions." + joint + "[1]"));
     d.joints.push_back(std::move(j));
   }
   // held-out anchors for the LDRs' early stopping: a seeded fraction of the distinct anchors

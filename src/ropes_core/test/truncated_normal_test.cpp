@@ -1,4 +1,4 @@
-#include "ropes_sim/truncated_normal.hpp"
+#include "ropes_core/truncated_normal.hpp"
 
 #include <gtest/gtest.h>
 
@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-namespace ropes::sim {
+namespace ropes::core {
 namespace {
 
 // An independent witness for the closed forms: the truncated density integrated by
@@ -75,7 +75,7 @@ TEST(TruncatedNormal, SamplesStayInsideAndHaveTheTruncatedMoments) {
   const int n = 200000;
   for (const Case& c : kCases) {
     const TruncatedNormal tn(c.mu, c.sigma, c.lower, c.upper);
-    core::PhiloxStream rng(11, 0);
+    PhiloxStream rng(11, 0);
     double sum = 0, sum_sq = 0;
     for (int i = 0; i < n; ++i) {
       const double x = tn.sample(rng);
@@ -126,7 +126,7 @@ TEST(TruncatedNormal, RejectsInvalidParametersWithTheValues) {
   expect_rejected(0, 1, 37.7, 38, "no probability mass");
   // just inside the limit: finite draws inside the interval
   const TruncatedNormal far(0, 1, 36.5, 36.9);
-  core::PhiloxStream rng(3, 0);
+  PhiloxStream rng(3, 0);
   for (int i = 0; i < 100; ++i) {
     const double x = far.sample(rng);
     EXPECT_TRUE(x >= 36.5 && x <= 36.9) << x;
@@ -157,7 +157,7 @@ TEST(TruncatedNormalGolden, FirstDrawsOfSeed7MatchScipy) {
   };
   for (const Golden& g : golden) {
     const TruncatedNormal tn(g.c.mu, g.c.sigma, g.c.lower, g.c.upper);
-    core::PhiloxStream rng(7, 0), uniform(7, 0);
+    PhiloxStream rng(7, 0), uniform(7, 0);
     for (int i = 0; i < 4; ++i) {
       EXPECT_EQ(uniform.uniform_double(), uniforms[i]) << "draw " << i;
       // a few ulps of slack for another libm's erfc/exp/log
@@ -167,4 +167,4 @@ TEST(TruncatedNormalGolden, FirstDrawsOfSeed7MatchScipy) {
 }
 
 }  // namespace
-}  // namespace ropes::sim
+}  // namespace ropes::core

@@ -4,7 +4,7 @@
 Feeds the pinned uniforms of PhiloxStream(seed 7, stream 0) through
 scipy.stats.truncnorm.ppf and prints scipy's draws beside the pinned ones.
 Run with Debian's python3 and python3-scipy:
-    /usr/bin/python3 src/ropes_sim/test/witness_truncated_normal.py
+    /usr/bin/python3 src/ropes_core/test/witness_truncated_normal.py
 """
 import scipy.stats as st
 

@@ -1,4 +1,4 @@
-#include "ropes_sim/truncated_normal.hpp"
+#include "ropes_core/truncated_normal.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -6,7 +6,7 @@
 #include <sstream>
 #include <stdexcept>
 
-namespace ropes::sim {
+namespace ropes::core {
 
 namespace {
 
@@ -129,7 +129,7 @@ double TruncatedNormal::quantile(double u) const {
   return std::clamp(x, lower_, upper_);
 }
 
-double TruncatedNormal::sample(core::PhiloxStream& rng) const {
+double TruncatedNormal::sample(PhiloxStream& rng) const {
   return quantile(rng.uniform_double());
 }
 
@@ -166,4 +166,4 @@ double TruncatedNormal::variance() const {
   return sigma_ * sigma_ * (1.0 + spread - shift * shift);
 }
 
-}  // namespace ropes::sim
+}  // namespace ropes::core
