@@ -61,7 +61,11 @@ void require_run_of_current_sim_dataset(const std::filesystem::path& run_dir) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(run_dir / "run.json", ec))
     return;
-  const std::filesystem::path data_dir = RunDirectory::open(run_dir).data_dir();
+  require_run_of_current_sim_dataset(RunDirectory::open(run_dir));
+}
+
+void require_run_of_current_sim_dataset(const RunDirectory& run) {
+  const std::filesystem::path& data_dir = run.data_dir();
   // a manifest may be as large as ropes_nn's DatasetReader allows (64 MiB)
   const nlohmann::json manifest =
       json_if_readable(data_dir / "manifest.json", std::uint64_t{64} << 20);
@@ -70,7 +74,7 @@ void require_run_of_current_sim_dataset(const std::filesystem::path& run_dir) {
   try {
     check_version(manifest["metadata"], (data_dir / "manifest.json").string(), data_dir.string());
   } catch (const core::FileFormatError& e) {
-    throw core::FileFormatError((run_dir / "run.json").string() +
+    throw core::FileFormatError(run.run_file().string() +
                                 ": the run was trained on an outdated dataset: " + e.what() +
                                 ", and train the run again on it");
   }

@@ -43,7 +43,11 @@ void load_weights(Net& net, const fs::path& path) {
 }  // namespace
 
 Estimator Estimator::load(const fs::path& run_dir) {
-  const RunDirectory run = RunDirectory::open(run_dir);
+  return load(RunDirectory::open(run_dir));
+}
+
+Estimator Estimator::load(const RunDirectory& run) {
+  const fs::path& run_dir = run.dir();
   if (!run.complete())
     throw core::FileFormatError(run.run_file().string() +
                                 ": the run has not finished training; run ropes-train again "

@@ -231,11 +231,7 @@ void check_options(const RunEvaluationOptions& options, const crl::ExperimentCon
         " camera(s) but the occlusion square is 0 px; expected an occlusion to place, or no "
         "occluded_cameras");
   const std::int64_t wanted = options.calibration_samples + options.test_samples;
-  if (options.repeats < 1 || options.calibration_samples < 2 || options.test_samples < 2)
-    throw std::invalid_argument("the protocol asks for " + std::to_string(options.repeats) +
-                                " repeats of " + std::to_string(options.calibration_samples) +
-                                " calibration and " + std::to_string(options.test_samples) +
-                                " test samples; expected at least 1 repeat and 2 samples a set");
+  check_protocol(options);
   if (static_cast<std::int64_t>(test.rows.size()) < wanted)
     throw std::invalid_argument(
         test.manifest.string() + ": " + std::to_string(test.rows.size()) +
@@ -379,13 +375,14 @@ void score_methods(RunEvaluation& ev, const std::vector<Source>& sources,
                    const Eigen::MatrixXd& angles, const std::vector<ProtocolSplit>& splits,
                    const crl::RunDirectory& run) {
   const Eigen::Index jn = angles.cols();
+  const crl::RunIdentity identity = crl::RunIdentity::of(run);  // hashes the config: once
   for (const auto& [name, latents] : sources) {
     MethodSummary m;
     m.method = name;
     for (std::size_t r = 0; r < splits.size(); ++r) {
       crl::Calibration fit;
       fit.joints = ev.joints;
-      fit.run = crl::RunIdentity::of(run);
+      fit.run = identity;
       m.repeats.push_back(
           score_method(name, *latents, angles, splits[r].calibration, splits[r].test, &fit));
       if (name.rfind("supervised_", 0) == 0)  // an angle estimate: its own error
@@ -514,15 +511,28 @@ void paper_numbers(RunEvaluation& ev, const RunEvaluationOptions& options) {
 
 }  // namespace
 
+void check_protocol(const RunEvaluationOptions& options) {
+  const auto require = [](bool ok, const char* field, std::int64_t value, const char* range) {
+    if (!ok)
+      throw std::invalid_argument(std::string(field) + " is " + std::to_string(value) +
+                                  "; expected " + range);
+  };
+  require(options.repeats >= 1 && options.repeats <= 10000, "repeats", options.repeats, "1..10000");
+  require(options.calibration_samples >= 2, "calibration_samples", options.calibration_samples,
+          "at least 2");
+  require(options.test_samples >= 2, "test_samples", options.test_samples, "at least 2");
+  require(options.probe_steps >= 0, "probe_steps", options.probe_steps, "0 or more");
+}
+
 RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
                            const RunEvaluationOptions& options) {
   RunEvaluation ev;
   ev.run_dir = run_dir.string();
   ev.data_dir = data_dir.string();
-  crl::Estimator estimator = crl::Estimator::load(run_dir);
-  crl::require_run_of_current_sim_dataset(run_dir);  // nor a run trained on it
-  const crl::ExperimentConfig& config = estimator.config();
   const crl::RunDirectory run = crl::RunDirectory::open(run_dir);
+  crl::Estimator estimator = crl::Estimator::load(run);
+  crl::require_run_of_current_sim_dataset(run);  // nor a run trained on it
+  const crl::ExperimentConfig& config = estimator.config();
   describe_run(ev, run, config);
 
   const core::DatasetReader reader = core::DatasetReader::open(data_dir);

@@ -77,12 +77,12 @@ Job run_job(const std::vector<std::string>& args, KillPoint kill = {},
   std::atomic<bool> text_seen{false};
   ropes::core::ChildOptions options;
   options.file_size_limit = file_limit;
-  options.on_line = [&](ropes::core::ChildProcess& child, const std::string& line) {
+  options.on_line = [&](ropes::core::ChildProcess&, const std::string& line) {
     if (line.back() == '\n') {
       job.line_times.push_back(std::chrono::duration<double>(Clock::now() - start).count());
       ++lines;
     }
-    if (!kill.text.empty() && child.output().find(kill.text) != std::string::npos)
+    if (!kill.text.empty() && line.find(kill.text) != std::string::npos)  // lines arrive whole
       text_seen = true;
   };
   ropes::core::ChildProcess child(args, options);

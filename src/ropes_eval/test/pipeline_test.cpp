@@ -89,8 +89,8 @@ struct Killed {
 Killed run_until_killed(const std::vector<std::string>& args, const std::string& stop) {
   Killed k;
   ropes::core::ChildOptions options;
-  options.on_line = [&](ropes::core::ChildProcess& child, const std::string&) {
-    if (!k.sent && child.output().find(stop) != std::string::npos) {
+  options.on_line = [&](ropes::core::ChildProcess& child, const std::string& line) {
+    if (!k.sent && line.find(stop) != std::string::npos) {  // lines arrive whole
       child.signal(SIGKILL);
       k.sent = true;
     }
@@ -578,6 +578,25 @@ TEST_F(Pipeline, BadInputIsRefusedClearly) {
   o = train(other.string());
   EXPECT_EQ(o.rc, 1);
   EXPECT_NE(o.text.find("ae2.panda_joint2.checkpoint.safetensors"), std::string::npos) << o.text;
+
+  // protocol counts out of range, ropes-eval's and ropes-run's flags alike: a usage error
+  // that names the flag, nothing evaluated or written
+  o = run(kEval + " --run " + good.string() + " --data " + (dir_ / "data1").string() +
+          " --repeats 0");
+  EXPECT_EQ(o.rc, 2);
+  EXPECT_NE(o.text.find("ropes-eval: error: --repeats is 0; expected 1..10000"), std::string::npos)
+      << o.text;
+  o = run(kRun + " 1c-tiny --out " + (dir_ / "run_bad_flags").string() +
+          " --calibration-samples 1");
+  EXPECT_EQ(o.rc, 2);
+  EXPECT_NE(o.text.find("ropes-run: error: --calibration-samples is 1; expected at least 2"),
+            std::string::npos)
+      << o.text;
+  o = run(kRun + " 1c-tiny 2c-tiny --out " + (dir_ / "run_bad_flags").string());
+  EXPECT_EQ(o.rc, 2);
+  EXPECT_NE(o.text.find("one CONFIG, got '1c-tiny' and '2c-tiny'"), std::string::npos) << o.text;
+  EXPECT_FALSE(fs::exists(dir_ / "run_bad_flags"));
+  EXPECT_FALSE(fs::exists(good.string() + "-eval"));
 
   // a test set too small for the protocol's default 1,000 + 500 samples
   o = run(kEval + " --run " + good.string() + " --data " + (dir_ / "data1").string());

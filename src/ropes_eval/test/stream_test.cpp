@@ -390,6 +390,9 @@ TEST(StreamingNode, BadCommandLinesAndRunsAreRefusedWithAClearMessage) {
       {{ROPES_SIM_STREAM_EXE, "--config", "no-such-config"}, 2, "'no-such-config' is neither"},
       {{ROPES_ECHO_EXE, "frames"}, 2, "TOPIC is 'frames'; expected image_frames"},
       {{ROPES_ECHO_EXE, "pose_estimates", "--count", "0"}, 2, "--count is '0'"},
+      {{ROPES_ECHO_EXE, "pose_estimates", "image_frames"},
+       2,
+       "one TOPIC only (got 'pose_estimates' and 'image_frames')"},
       {{ROPES_EVAL_EXE, "--live", "--window", "2"}, 2, "--window is 2; expected at least 3"},
   };
   fs::create_directories(kDir);

@@ -112,26 +112,9 @@ int run(int argc, char** argv) {
       .option("--run", [&](const std::string& v) { run_dir = v; })
       .option("--data", [&](const std::string& v) { data = v; })
       .option("--out", [&](const std::string& v) { out = v; })
-      .option("--repeats",
-              [&](const std::string& v) {
-                options.repeats = parse_number<std::int64_t>("--repeats", v);
-              })
-      .option("--calibration-samples",
-              [&](const std::string& v) {
-                options.calibration_samples =
-                    parse_number<std::int64_t>("--calibration-samples", v);
-              })
-      .option("--test-samples",
-              [&](const std::string& v) {
-                options.test_samples = parse_number<std::int64_t>("--test-samples", v);
-              })
       .option(
           "--seed",
           [&](const std::string& v) { options.seed = parse_number<std::uint64_t>("--seed", v); })
-      .option("--probe-steps",
-              [&](const std::string& v) {
-                options.probe_steps = parse_number<std::int64_t>("--probe-steps", v);
-              })
       .option("--threads",
               [&](const std::string& v) { threads = parse_number<int>("--threads", v); })
       .option("--suite",
@@ -161,21 +144,13 @@ int run(int argc, char** argv) {
         if (suite_args.supervised_max_steps < 1)
           throw UsageError("--supervised-max-steps is " + v + "; expected at least 1");
       });
+  tools::add_protocol_options(command_line, options);
   if (!command_line.parse(argc, argv))
     return 0;
   if (screen && (!data.empty() || !suite_args.suites.empty()))
     throw UsageError("--screen takes no --data or --suite: it reads the run's training set");
   if (run_dir.empty() || (data.empty() && suite_args.suites.empty() && !screen))
     throw UsageError("--run and either --data, --suite or --screen are required (see --help)");
-  if (options.probe_steps < 0)
-    throw UsageError("--probe-steps is " + std::to_string(options.probe_steps) +
-                     "; expected 0 or more");
-  if (options.repeats < 1 || options.repeats > 10000)
-    throw UsageError("--repeats is " + std::to_string(options.repeats) + "; expected 1..10000");
-  if (options.calibration_samples < 2 || options.test_samples < 2)
-    throw UsageError("--calibration-samples and --test-samples must be at least 2 (they are " +
-                     std::to_string(options.calibration_samples) + " and " +
-                     std::to_string(options.test_samples) + ")");
   if (threads < 1 || threads > 256)
     throw UsageError("--threads is " + std::to_string(threads) + "; expected 1..256");
   ropes::nn::set_num_threads(threads);

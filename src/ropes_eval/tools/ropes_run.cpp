@@ -75,24 +75,9 @@ int run(int argc, char** argv) {
       .option("--dataset-config", [&](const std::string& v) { job.dataset_config = v; })
       .option("--suite",
               [&](const std::string& v) { job.suites.suites = tools::parse_suites("--suite", v); })
-      .option(
-          "--repeats",
-          [&](const std::string& v) { eval.repeats = parse_number<std::int64_t>("--repeats", v); })
-      .option("--calibration-samples",
-              [&](const std::string& v) {
-                eval.calibration_samples = parse_number<std::int64_t>("--calibration-samples", v);
-              })
-      .option("--test-samples",
-              [&](const std::string& v) {
-                eval.test_samples = parse_number<std::int64_t>("--test-samples", v);
-              })
       .option("--supervised",
               [&](const std::string& v) {
                 job.suites.supervised = tools::parse_supervised("--supervised", v);
-              })
-      .option("--probe-steps",
-              [&](const std::string& v) {
-                eval.probe_steps = parse_number<std::int64_t>("--probe-steps", v);
               })
       .option("--threads",
               [&](const std::string& v) { job.threads = parse_number<int>("--threads", v); })
@@ -101,21 +86,13 @@ int run(int argc, char** argv) {
           throw UsageError("--progress is '" + v + "'; expected bar, lines or auto");
         progress = v;
       });
+  tools::add_protocol_options(command_line, eval);
   if (!command_line.parse(argc, argv))
     return 0;
   if (job.config.empty())
     throw UsageError("CONFIG is required (see --help)");
   if (job.threads < 1 || job.threads > 256)
     throw UsageError("--threads is " + std::to_string(job.threads) + "; expected 1..256");
-  if (eval.probe_steps < 0)
-    throw UsageError("--probe-steps is " + std::to_string(eval.probe_steps) +
-                     "; expected 0 or more");
-  if (eval.repeats < 1 || eval.repeats > 10000 || eval.calibration_samples < 2 ||
-      eval.test_samples < 2)
-    throw UsageError("--repeats must be 1..10000 and the sample counts at least 2 (they are " +
-                     std::to_string(eval.repeats) + ", " +
-                     std::to_string(eval.calibration_samples) + " and " +
-                     std::to_string(eval.test_samples) + ")");
   job.progress_bar = progress == "bar" || (progress == "auto" && ::isatty(2) != 0);
 
   const auto t0 = std::chrono::steady_clock::now();

@@ -8,6 +8,8 @@
 /// so those datasets are not the paper's (for example the 2C angles have variance 0.16, not
 /// the paper's 0.35). Version 3 reads it as the paper does. ropes_crl does not link the
 /// simulator; it reads the version from the manifest's metadata.
+#include "ropes_crl/run_directory.hpp"
+
 #include <ropes_core/dataset.hpp>
 
 #include <filesystem>
@@ -31,5 +33,7 @@ void require_current_sim_dataset(const core::DatasetReader& reader);
 /// a run.json that is not a run's is refused as RunDirectory::open refuses it.
 /// Cost: reads run.json and the manifest.
 void require_run_of_current_sim_dataset(const std::filesystem::path& run_dir);
+/// The same for a run directory already opened: reads only the manifest.
+void require_run_of_current_sim_dataset(const RunDirectory& run);
 
 }  // namespace ropes::crl

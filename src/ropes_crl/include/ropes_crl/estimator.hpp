@@ -14,6 +14,7 @@
 #include "ropes_crl/calibration.hpp"
 #include "ropes_crl/experiment_config.hpp"
 #include "ropes_crl/networks.hpp"
+#include "ropes_crl/run_directory.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -31,6 +32,8 @@ class Estimator {
   /// incomplete (run.json not "complete"), a weight file is missing or does not match the
   /// architecture its metadata and the run's config describe.
   static Estimator load(const std::filesystem::path& run_dir);
+  /// The same from a run directory already opened (reads no run.json again).
+  static Estimator load(const RunDirectory& run);
   Estimator(Estimator&&) noexcept;
   Estimator& operator=(Estimator&&) noexcept;
   ~Estimator();

@@ -77,6 +77,11 @@ struct RunEvaluationOptions {
   std::filesystem::path paper_results;
 };
 
+/// The protocol's counts: repeats 1..10000, calibration_samples and test_samples at least 2,
+/// probe_steps at least 0. Throws std::invalid_argument naming the field, its value and the
+/// range. evaluate_run and run_main_job check with it.
+void check_protocol(const RunEvaluationOptions& options);
+
 /// One method's numbers per joint for one repeat (NaN where a latent is constant on the
 /// test samples).
 struct MethodScores {

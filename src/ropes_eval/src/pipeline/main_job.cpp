@@ -49,14 +49,7 @@ void check(const MainJobOptions& o) {
   const RunEvaluationOptions& e = o.suites.evaluation;
   if (o.threads < 1 || o.threads > 256)
     throw std::invalid_argument("threads is " + std::to_string(o.threads) + "; expected 1..256");
-  if (e.probe_steps < 0)
-    throw std::invalid_argument("probe_steps is " + std::to_string(e.probe_steps) +
-                                "; expected 0 or more");
-  if (e.repeats < 1 || e.repeats > 10000 || e.calibration_samples < 2 || e.test_samples < 2)
-    throw std::invalid_argument(
-        "repeats must be 1..10000 and the sample counts at least 2 (they are " +
-        std::to_string(e.repeats) + ", " + std::to_string(e.calibration_samples) + " and " +
-        std::to_string(e.test_samples) + ")");
+  check_protocol(e);
   check_suites(o.suites.suites);
 }
 

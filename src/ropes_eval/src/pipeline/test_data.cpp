@@ -89,10 +89,10 @@ TestData ensure_test_data(const TestDataRequest& request) {
   const fs::path manifest = train_dir / "manifest.json";
   if (train_dir.empty() || !fs::is_regular_file(manifest))
     throw std::invalid_argument(
-        (request.run_dir / "run.json").string() + ": its training set '" + train_dir.string() +
+        run.run_file().string() + ": its training set '" + train_dir.string() +
         "' has no manifest.json; the suites take their configs from it (or pass --data DIR)");
   // a run trained on a dataset of the old TN(mean, x) reading gets no test set of the new one
-  crl::require_run_of_current_sim_dataset(request.run_dir);
+  crl::require_run_of_current_sim_dataset(run);
   const nlohmann::json meta = read_json(manifest).value("metadata", nlohmann::json::object());
   const std::string train_config =
       meta.contains("config") && meta["config"].is_object() ? meta["config"].value("name", "") : "";
