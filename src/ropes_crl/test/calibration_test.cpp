@@ -3,7 +3,6 @@
 #include "ropes_crl/calibration.hpp"
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -11,6 +10,7 @@
 #include <vector>
 
 #include "ropes_core/file_format_error.hpp"
+#include "ropes_core/scratch_dir.hpp"
 #include "ropes_crl/run_directory.hpp"
 
 namespace ropes::crl {
@@ -21,13 +21,9 @@ namespace fs = std::filesystem;
 class CalibrationTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("ropes_calibration_" + std::to_string(::getpid()));
-    fs::remove_all(dir_);
-    run_dir_ = dir_ / "runs" / "a";
     fs::create_directories(run_dir_);
     write_run(7);
   }
-  void TearDown() override { fs::remove_all(dir_); }
   // a run.json of the keys ropes-train writes (as in run_directory_test.cpp)
   void write_run(std::uint64_t seed) {
     const ExperimentConfig config =
@@ -47,7 +43,9 @@ class CalibrationTest : public ::testing::Test {
     c.run = RunIdentity::of(run);
     return c;
   }
-  fs::path dir_, run_dir_;
+  core::ScratchDir scratch_{"ropes_calibration"};
+  const fs::path dir_ = scratch_.path();
+  const fs::path run_dir_ = dir_ / "runs" / "a";
 };
 
 TEST_F(CalibrationTest, RoundTripsThroughItsFileWithTheRunItWasFittedFor) {

@@ -3,7 +3,6 @@
 #include "ropes_crl/run_directory.hpp"
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
@@ -11,6 +10,7 @@
 #include <string>
 
 #include "ropes_core/file_format_error.hpp"
+#include "ropes_core/scratch_dir.hpp"
 
 namespace ropes::crl {
 namespace {
@@ -20,9 +20,6 @@ namespace fs = std::filesystem;
 class RunDirectoryTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("ropes_run_directory_" + std::to_string(::getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
     config_ = load_experiment_config(std::string(ROPES_CRL_SOURCE_CONFIGS) + "/1c-tiny.json");
     // the keys ropes-train writes (trainer.cpp, open_run and train)
     run_ = {{"format", "ropes-run"},
@@ -36,7 +33,6 @@ class RunDirectoryTest : public ::testing::Test {
             {"provenance", {{"isa_level", "x86-64-v4"}}},
             {"stages", nlohmann::json::object()}};
   }
-  void TearDown() override { fs::remove_all(dir_); }
   void write(const std::string& text) { std::ofstream(dir_ / "run.json") << text; }
   std::string error() {
     try {
@@ -46,7 +42,8 @@ class RunDirectoryTest : public ::testing::Test {
     }
     return "(opened)";
   }
-  fs::path dir_;
+  core::ScratchDir scratch_{"ropes_run_directory"};
+  const fs::path dir_ = scratch_.path();
   ExperimentConfig config_;
   nlohmann::json run_;
 };
@@ -108,6 +105,14 @@ TEST_F(RunDirectoryTest, WhatIsNotARunIsRefusedNamingRunJsonAndTheField) {
   write(r.dump());
   EXPECT_NE(error().find(file), std::string::npos) << error();
   EXPECT_NE(error().find("widths"), std::string::npos) << error();
+  r = run_;
+  r["provenance"] = "x86";
+  write(r.dump());
+  EXPECT_EQ(error(), file + ": provenance is \"x86\"; expected an object");
+  r = run_;
+  r["ldr"] = {1, 2};
+  write(r.dump());
+  EXPECT_EQ(error(), file + ": ldr is a JSON array; expected an object of joints");
   r = run_;
   r["sparsity_matrix"] = {{"joint2", 3}};
   write(r.dump());

@@ -10,6 +10,8 @@
 /// std::length_error or std::out_of_range, a JSON library exception that was not turned into
 /// a message naming the file — is a finding: the harness lets it escape, libFuzzer reports
 /// the input, and the input goes to fuzz/regressions/ once fixed.
+#include "ropes_core/scratch_dir.hpp"
+
 #include <unistd.h>
 
 #include <cstddef>
@@ -73,47 +75,7 @@ inline std::string join_sections(const std::vector<Section>& sections) {
   return out;
 }
 
-/// A folder of its own for one harness process (under $TMPDIR or /tmp), removed when the
-/// object goes. Harnesses keep one in a function-local static and clear() it per input.
-class ScratchDir {
- public:
-  ScratchDir() {
-    const char* tmp = std::getenv("TMPDIR");
-    std::string pattern =
-        std::string(tmp != nullptr && *tmp != '\0' ? tmp : "/tmp") + "/ropes-fuzz-XXXXXX";
-    if (mkdtemp(pattern.data()) == nullptr)
-      throw std::runtime_error("fuzz: cannot create a scratch folder from " + pattern);
-    root_ = pattern;
-  }
-  ScratchDir(const ScratchDir&) = delete;
-  ScratchDir& operator=(const ScratchDir&) = delete;
-  ~ScratchDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(root_, ec);
-  }
-
-  const std::filesystem::path& path() const { return root_; }
-
-  /// Removes everything inside the folder.
-  void clear() const {
-    for (const auto& entry : std::filesystem::directory_iterator(root_))
-      std::filesystem::remove_all(entry.path());
-  }
-
-  /// Writes `bytes` to path() / relative (creating its folders) and returns the full path.
-  /// `relative` comes from the harness, never from the input.
-  std::filesystem::path write(const std::string& relative, const std::string& bytes) const {
-    const std::filesystem::path file = root_ / relative;
-    std::filesystem::create_directories(file.parent_path());
-    std::ofstream out(file, std::ios::binary | std::ios::trunc);
-    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    if (!out)
-      throw std::runtime_error("fuzz: cannot write " + file.string());
-    return file;
-  }
-
- private:
-  std::filesystem::path root_;
-};
+/// fuzz harnesses name it in their own namespace
+using core::ScratchDir;
 
 }  // namespace ropes::core::fuzz
