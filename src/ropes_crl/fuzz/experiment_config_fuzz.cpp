@@ -1,13 +1,15 @@
 // experiment_config_fuzz: load_experiment_config on an arbitrary file, as ropes-train reads
 // --config FILE. It either gives a config whose to_json() reads back to the same config, or
-// is refused with std::invalid_argument naming the file and the field (the documented
-// error of this reader). Corpus: three of the installed configs.
+// is refused with core::ConfigError naming the file and the field, or core::FileFormatError
+// for a file that is not JSON (the documented errors of this reader). Corpus: three of the
+// installed configs.
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
 #include <stdexcept>
 #include <string>
 
+#include "ropes_core/file_format_error.hpp"
 #include "ropes_core/fuzz_input.hpp"
 #include "ropes_crl/experiment_config.hpp"
 
@@ -21,7 +23,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const crl::ExperimentConfig again = crl::ExperimentConfig::from_json(config.to_json(), "again");
     if (again.to_json() != config.to_json())
       std::abort();
-  } catch (const std::invalid_argument&) {
+  } catch (const ropes::core::FileFormatError&) {  // ConfigError among them
   }
   return 0;
 }

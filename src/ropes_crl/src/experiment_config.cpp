@@ -266,8 +266,8 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
                                   std::to_string(c.joints.size()) +
                                   "); latent i estimates joint i");
     return c;
-  } catch (const std::invalid_argument& e) {
-    throw std::invalid_argument(where + ": " + e.what());
+  } catch (const std::invalid_argument& e) {  // a field's check: named with its source
+    throw core::ConfigError(where + ": " + e.what());
   }
 }
 
@@ -295,21 +295,15 @@ ExperimentConfig load_experiment_config(const std::string& name_or_path) {
       for (const auto& e : fs::directory_iterator(installed_config_dir(), ec))
         if (e.path().extension() == ".json")
           names += (names.empty() ? "" : ", ") + e.path().stem().string();
-      throw std::invalid_argument("experiment config '" + name_or_path +
-                                  "' is neither a file nor an installed config (installed in " +
-                                  installed_config_dir().string() + ": " + names + ")");
+      throw core::ConfigError("experiment config '" + name_or_path +
+                              "' is neither a file nor an installed config (installed in " +
+                              installed_config_dir().string() + ": " + names + ")");
     }
     path = installed;
   }
   // a huge file is refused by its size; a number too large for any type (found by
   // fuzz/experiment_config) is "not JSON"
-  nlohmann::json j;
-  try {
-    j = core::read_json_file(path);
-  } catch (const core::FileFormatError& e) {
-    throw std::invalid_argument(e.what());
-  }
-  return ExperimentConfig::from_json(j, path.string());
+  return ExperimentConfig::from_json(core::read_json_file(path), path.string());
 }
 
 }  // namespace ropes::crl

@@ -50,12 +50,8 @@ RunDirectory RunDirectory::open(const fs::path& dir) {
     fail(file, "not a ropes run (format " +
                    (format == run.end() ? std::string("missing") : core::describe(*format)) +
                    ", expected \"" + detail::kRunFormat + "\")");
-  try {
-    r.config_ = ExperimentConfig::from_json(
-        required(run, file, "config", &nlohmann::json::is_object, "a JSON object"), file.string());
-  } catch (const std::invalid_argument& e) {
-    throw core::FileFormatError(e.what());
-  }
+  r.config_ = ExperimentConfig::from_json(  // a core::ConfigError naming run.json
+      required(run, file, "config", &nlohmann::json::is_object, "a JSON object"), file.string());
   for (const nlohmann::json& j :
        required(run, file, "joints", &nlohmann::json::is_array, "an array of joint names")) {
     if (!j.is_string())

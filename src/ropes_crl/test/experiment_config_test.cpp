@@ -2,6 +2,7 @@
 #include "ropes_crl/trainer.hpp"
 
 #include <gtest/gtest.h>
+#include <ropes_core/file_format_error.hpp>
 #include <ropes_nn/gradcheck.hpp>
 
 #include <algorithm>
@@ -16,7 +17,7 @@ namespace {
 std::string error_of(const nlohmann::json& j) {
   try {
     ExperimentConfig::from_json(j, "test.json");
-  } catch (const std::invalid_argument& e) {
+  } catch (const ropes::core::ConfigError& e) {
     return e.what();
   }
   return "";
@@ -155,7 +156,7 @@ TEST(ExperimentConfig, ErrorsNameTheFileTheFieldAndTheValue) {
   try {
     load_experiment_config("no-such-config");
     FAIL();
-  } catch (const std::invalid_argument& e) {
+  } catch (const ropes::core::ConfigError& e) {
     EXPECT_NE(std::string(e.what()).find("'no-such-config' is neither a file nor an installed"),
               std::string::npos);
   }

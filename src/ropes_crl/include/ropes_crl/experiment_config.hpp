@@ -8,6 +8,7 @@
 #include "ropes_crl/networks.hpp"
 #include "ropes_crl/score_sparsity.hpp"
 
+#include <ropes_core/file_format_error.hpp>
 #include <ropes_nn/lr_schedule.hpp>
 
 #include <nlohmann/json.hpp>
@@ -121,7 +122,8 @@ struct ExperimentConfig {
   std::int64_t code_channels() const { return cameras * ae1.code_channels; }
   /// Everything above as JSON (what run.json and the weight files record).
   nlohmann::json to_json() const;
-  /// Parses and validates; `where` names the source in errors. Throws std::invalid_argument.
+  /// Parses and validates; `where` names the source in errors. Throws core::ConfigError
+  /// naming `where`, the field, the value and what was expected.
   static ExperimentConfig from_json(const nlohmann::json& j, const std::string& where);
   /// With Ae1Training::steps computed from "epochs" when the config gives epochs.
   void resolve_epochs(std::int64_t dataset_images);
@@ -136,8 +138,9 @@ struct ExperimentConfig {
 std::filesystem::path installed_config_dir();
 
 /// Reads `name_or_path`: a file path, or the name of an installed config ("1c-small").
-/// Throws std::invalid_argument naming the file and the field for anything invalid, and
-/// listing the installed names when a name is not found.
+/// Throws core::ConfigError naming the file and the field for anything invalid, and
+/// listing the installed names when a name is not found; core::FileFormatError for a file
+/// that is not JSON or too large.
 ExperimentConfig load_experiment_config(const std::string& name_or_path);
 
 }  // namespace ropes::crl

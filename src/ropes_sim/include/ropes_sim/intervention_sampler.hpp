@@ -32,11 +32,8 @@
 namespace ropes::sim {
 
 /// Thrown for a config file that cannot be used; the message names the file and the field.
-/// A core::FileFormatError, as every refusal of a file in the workspace is.
-class ConfigError : public core::FileFormatError {
- public:
-  using core::FileFormatError::FileFormatError;
-};
+/// ropes_core's, the one config error of the workspace.
+using core::ConfigError;
 
 class InterventionSampler {
  public:
