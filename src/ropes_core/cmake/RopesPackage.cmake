@@ -4,7 +4,8 @@
 #   project(<name> LANGUAGES CXX)
 #   find_package(ropes_core 0.1 CONFIG REQUIRED)   # ropes_core itself: include(cmake/...)
 #   ropes_package()
-#   ... targets ...
+#   ropes_add_library(<target> [EXPORT_NAME <name>] <sources>...)
+#   ... other targets ...
 #   ropes_install_package(TARGETS <libraries>... [EXECUTABLES <tools>...]
 #                         [CONFIG_FILES <files>...] [NO_INCLUDE_DIR])
 #
@@ -14,6 +15,11 @@
 # clang-tidy parses as the compiler does), includes GNUInstallDirs, CMakePackageConfigHelpers
 # and CTest, and gives every target of the package the workspace's warning flags:
 # -Wall -Wextra -Wpedantic -Wshadow, and -Werror with ROPES_WERROR=ON (CI).
+#
+# ropes_add_library() adds a library the way every package declares one: the alias
+# <name>::<export name> (EXPORT_NAME, default the target's name), C++17 for its users, the
+# package's include/ on their include path (installed as include/), and position-independent
+# code, so that a user's shared library can link the static library.
 #
 # ropes_find_streaming(<var> <what>) is the option ROPES_WITH_DDS of a package whose streaming
 # executables need ropes_msgs built with Fast DDS: AUTO (the default) builds them when
@@ -64,6 +70,21 @@ macro(ropes_package)
   include(CTest)
   add_compile_options(-Wall -Wextra -Wpedantic -Wshadow $<$<BOOL:${ROPES_WERROR}>:-Werror>)
 endmacro()
+
+function(ropes_add_library target)
+  cmake_parse_arguments(_l "" "EXPORT_NAME" "" ${ARGN})
+  set(_name ${target})
+  if(_l_EXPORT_NAME)
+    set(_name ${_l_EXPORT_NAME})
+  endif()
+  add_library(${target} ${_l_UNPARSED_ARGUMENTS})
+  add_library(${PROJECT_NAME}::${_name} ALIAS ${target})
+  set_target_properties(${target} PROPERTIES EXPORT_NAME ${_name} POSITION_INDEPENDENT_CODE ON)
+  target_compile_features(${target} PUBLIC cxx_std_17)
+  target_include_directories(${target} PUBLIC
+    $<BUILD_INTERFACE:${PROJECT_SOURCE_DIR}/include>
+    $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
+endfunction()
 
 macro(ropes_find_streaming var what)
   set(ROPES_WITH_DDS AUTO CACHE STRING "Build ${what} (Fast DDS): AUTO, ON or OFF")
