@@ -106,6 +106,11 @@ std::string read_text_file(const std::filesystem::path& path, std::uint64_t max_
   return text;
 }
 
+bool is_regular_file(const std::filesystem::path& path) noexcept {
+  std::error_code ec;
+  return std::filesystem::is_regular_file(path, ec);
+}
+
 void remove_stale_temporaries(const std::filesystem::path& dir, const std::string& file_name) {
   std::error_code ec;
   if (!std::filesystem::is_directory(dir, ec))

@@ -38,6 +38,12 @@ Json read_json_file(const std::filesystem::path& path, std::uint64_t max_bytes) 
   return value;
 }
 
+Json read_json_file_if_present(const std::filesystem::path& path, std::uint64_t max_bytes) {
+  if (!core::is_regular_file(path))
+    return Json(Json::value_t::discarded);
+  return parse_json_or_discarded(read_text_file(path, max_bytes));
+}
+
 std::string describe(const Json& v) {
   if (v.is_string()) {
     const std::string& text = v.get_ref<const std::string&>();

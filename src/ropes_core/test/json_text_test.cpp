@@ -65,6 +65,23 @@ TEST(JsonText, AFileThatIsNotJsonIsRefusedByName) {
     fs::remove(p);
 }
 
+TEST(JsonText, AFileThatMayBeAbsentIsDiscardedWhenMissingOrNotJson) {
+  const fs::path good = write("ropes_json_present", "{\"k\": 2}");
+  EXPECT_EQ(read_json_file_if_present(good)["k"], 2);
+  const fs::path bad = write("ropes_json_present_bad", "{\"k\": ");
+  EXPECT_TRUE(read_json_file_if_present(bad).is_discarded());
+  EXPECT_TRUE(
+      read_json_file_if_present(fs::temp_directory_path() / "ropes_json_absent").is_discarded());
+  // a folder, and a name too long to look at: not a file, no throw
+  EXPECT_TRUE(read_json_file_if_present(fs::temp_directory_path()).is_discarded());
+  EXPECT_FALSE(core::is_regular_file(fs::temp_directory_path() / std::string(5000, 'x')));
+  EXPECT_TRUE(core::is_regular_file(good));
+  // there but over the limit: refused, not taken for absent
+  EXPECT_THROW(read_json_file_if_present(good, 4), FileFormatError);
+  for (const fs::path& p : {good, bad})
+    fs::remove(p);
+}
+
 TEST(JsonText, DescribeShowsAValueWithoutItsContents) {
   EXPECT_EQ(describe(nlohmann::json("abc")), "\"abc\"");
   EXPECT_EQ(describe(nlohmann::json(std::string(50, 'x'))), "\"" + std::string(40, 'x') + "...\"");

@@ -159,8 +159,7 @@ std::vector<fs::path> calibration_candidates(const RunDirectory& run) {
   std::vector<fs::path> out = {eval / "calibration.json", eval / "report" / "calibration.json"};
   // ropes-run's layout: OUT/run beside OUT/report and OUT/ropes-run.json
   const fs::path parent = eval.parent_path().empty() ? fs::path(".") : eval.parent_path();
-  std::error_code ec;
-  if (fs::is_regular_file(parent / "ropes-run.json", ec))
+  if (core::is_regular_file(parent / "ropes-run.json"))
     out.push_back(parent / "report" / "calibration.json");
   return out;
 }
@@ -170,9 +169,9 @@ std::optional<fs::path> latest_calibration(const RunDirectory& run,
   std::optional<fs::path> best;
   fs::file_time_type best_time{};
   for (const fs::path& file : calibration_candidates(run)) {
-    std::error_code ec;
-    if (!fs::is_regular_file(file, ec))
+    if (!core::is_regular_file(file))
       continue;
+    std::error_code ec;
     const fs::file_time_type written = fs::last_write_time(file, ec);
     if (ec)
       continue;

@@ -40,11 +40,8 @@ void check_version(const nlohmann::json& meta, const std::string& manifest,
 
 // the JSON in `path`, or a discarded value when it is missing, over `limit` bytes or not JSON
 nlohmann::json json_if_readable(const std::filesystem::path& path, std::uint64_t limit) {
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec))
-    return nlohmann::json(nlohmann::json::value_t::discarded);
   try {
-    return core::parse_json_or_discarded(core::read_text_file(path, limit));
+    return core::read_json_file_if_present(path, limit);
   } catch (const core::FileFormatError&) {
     return nlohmann::json(nlohmann::json::value_t::discarded);
   }
@@ -58,8 +55,7 @@ void require_current_sim_dataset(const core::DatasetReader& reader) {
 }
 
 void require_run_of_current_sim_dataset(const std::filesystem::path& run_dir) {
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(run_dir / "run.json", ec))
+  if (!core::is_regular_file(run_dir / "run.json"))
     return;
   require_run_of_current_sim_dataset(RunDirectory::open(run_dir));
 }

@@ -39,8 +39,7 @@ RunDirectory RunDirectory::open(const fs::path& dir) {
   RunDirectory r;
   r.dir_ = dir;
   const fs::path file = r.run_file();
-  std::error_code ec;
-  if (!fs::is_regular_file(file, ec))
+  if (!core::is_regular_file(file))
     fail(file, "missing; is '" + dir.string() + "' a run directory of ropes-train?");
   const nlohmann::json run = core::read_json_file(file);
   if (!run.is_object())

@@ -49,7 +49,7 @@ const MethodSummary* method(const RunEvaluation& ev, const std::string& name) {
 
 nlohmann::json paper_suite_numbers(const std::string& setting, const fs::path& paper_results) {
   const fs::path file = paper_results.empty() ? installed_paper_results() : paper_results;
-  const nlohmann::json paper = detail::read_json_if_there(file);
+  const nlohmann::json paper = core::read_json_file_if_present(file);
   if (paper.is_discarded())
     throw core::FileFormatError(file.string() + ": cannot be read as JSON");
   nlohmann::json out = {

@@ -552,9 +552,8 @@ std::string html_report(const EvaluationReport& report, const fs::path& run_dir,
   h << "</div>\n";
 
   // sparsity matrices
-  std::error_code ec;
   const std::vector<crl::SparsityMatrix> matrices =
-      fs::is_regular_file(run_dir / "run.json", ec)
+      core::is_regular_file(run_dir / "run.json")
           ? crl::RunDirectory::open(run_dir).sparsity_matrices()
           : std::vector<crl::SparsityMatrix>();
   if (!matrices.empty()) {

@@ -1,6 +1,6 @@
 #pragma once
-// Reading the JSON files of a run or a dataset that may be absent, and writing numbers
-// (private to ropes_eval; a file that must be there: core::read_json_file).
+// Reading a log that may be absent, and writing numbers (private to ropes_eval; a JSON file
+// that may be absent: core::read_json_file_if_present).
 #include <ropes_core/file_format_error.hpp>
 #include <ropes_core/file_io.hpp>
 #include <ropes_core/json_text.hpp>
@@ -23,21 +23,11 @@ inline nlohmann::json numbers_or_null(const std::vector<double>& v) {
   return a;
 }
 
-// the file's JSON, or a discarded value when it is missing or not JSON (a file that may be
-// absent); one over core::kMaxJsonFileBytes is still refused (core::FileFormatError)
-inline nlohmann::json read_json_if_there(const std::filesystem::path& path) {
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec))
-    return nlohmann::json(nlohmann::json::value_t::discarded);
-  return core::parse_json_or_discarded(core::read_text_file(path, core::kMaxJsonFileBytes));
-}
-
 // the lines of a log that may be absent (none then); one over core::kMaxLogFileBytes is
 // refused (core::FileFormatError)
 inline std::vector<std::string> read_log_lines(const std::filesystem::path& path) {
   std::vector<std::string> lines;
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec))
+  if (!core::is_regular_file(path))
     return lines;
   std::istringstream in(core::read_text_file(path, core::kMaxLogFileBytes));
   std::string line;

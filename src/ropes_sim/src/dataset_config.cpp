@@ -7,6 +7,7 @@
 #include <system_error>
 
 #include "json_config.hpp"
+#include "ropes_core/file_io.hpp"
 #include "ropes_core/package_share.hpp"
 #include "ropes_core/plain_name.hpp"
 #include "ropes_sim/intervention_sampler.hpp"
@@ -14,13 +15,6 @@
 namespace ropes::sim {
 
 namespace {
-
-// a path that cannot be looked at (a name too long, a loop of links) is not a file: the
-// throwing overload ended a fuzz run with filesystem_error (ropes_sim's fuzz/mesh)
-bool regular_file(const std::filesystem::path& p) {
-  std::error_code ec;
-  return std::filesystem::is_regular_file(p, ec);
-}
 
 using Json = nlohmann::json;
 
@@ -129,11 +123,11 @@ DatasetConfig DatasetConfig::load(const std::filesystem::path& path) {
   }
   c.distribution =
       relative_to(path, text(required(config, "distribution", file, ""), file, "distribution"));
-  if (!regular_file(c.distribution))
+  if (!core::is_regular_file(c.distribution))
     fail(file, "distribution is '" + config["distribution"].get<std::string>() +
                    "': " + c.distribution.string() + " does not exist");
   c.robot = relative_to(path, text(required(config, "robot", file, ""), file, "robot"));
-  if (!regular_file(c.robot))
+  if (!core::is_regular_file(c.robot))
     fail(file, "robot is '" + config["robot"].get<std::string>() + "': " + c.robot.string() +
                    " does not exist");
 
@@ -194,13 +188,13 @@ std::filesystem::path installed_dataset_configs_dir() {
 }
 
 std::filesystem::path find_dataset_config(const std::string& name_or_path) {
-  if (regular_file(name_or_path))
+  if (core::is_regular_file(name_or_path))
     return name_or_path;
   // a name may come from a manifest someone else wrote: never a path out of the directory
   if (!core::is_plain_name(name_or_path))
     return {};
   const std::filesystem::path p = installed_dataset_configs_dir() / (name_or_path + ".json");
-  return regular_file(p) ? p : std::filesystem::path();
+  return core::is_regular_file(p) ? p : std::filesystem::path();
 }
 
 }  // namespace ropes::sim

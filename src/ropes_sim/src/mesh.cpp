@@ -14,16 +14,11 @@
 #include <sstream>
 #include <system_error>
 
+#include "ropes_core/file_io.hpp"
+
 namespace ropes::sim {
 
 namespace {
-
-// a path that cannot be looked at (a name too long, a loop of links) is not a file: the
-// throwing overload ended a fuzz run with filesystem_error (ropes_sim's fuzz/mesh)
-bool regular_file(const std::filesystem::path& p) {
-  std::error_code ec;
-  return std::filesystem::is_regular_file(p, ec);
-}
 
 using Vec3 = Eigen::Vector3f;
 
@@ -101,7 +96,7 @@ std::shared_ptr<const Texture> load_texture(const std::filesystem::path& path, c
 // materials of one MTL file: newmtl, Kd, map_Kd (the last token is the file name)
 void load_mtl(const std::filesystem::path& path, const Where& from,
               std::map<std::string, Material>* materials, std::vector<std::string>* warnings) {
-  if (!regular_file(path)) {
+  if (!core::is_regular_file(path)) {
     warnings->push_back(from.str() + ": material library '" + path.string() +
                         "' does not exist; its materials are drawn plain white");
     return;
@@ -130,7 +125,7 @@ void load_mtl(const std::filesystem::path& path, const Where& from,
         if (t.size() < 2)
           throw MeshError(where.str() + ": 'map_Kd' without a file name");
         const std::filesystem::path texture = path.parent_path() / std::string(t.back());
-        if (regular_file(texture)) {
+        if (core::is_regular_file(texture)) {
           current->texture = load_texture(texture, where);
         } else {
           warnings->push_back(where.str() + ": texture '" + texture.string() +
@@ -333,7 +328,7 @@ Mesh load_stl(const std::filesystem::path& path) {
 }  // namespace
 
 Mesh load_mesh(const std::filesystem::path& path) {
-  if (!regular_file(path))
+  if (!core::is_regular_file(path))
     throw MeshError(path.string() + ": mesh file does not exist");
   const std::string ext = lower(path.extension().string());
   if (ext == ".obj")

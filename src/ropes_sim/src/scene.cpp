@@ -3,6 +3,8 @@
 #include <map>
 #include <system_error>
 
+#include "ropes_core/file_io.hpp"
+
 namespace ropes::sim {
 
 std::filesystem::path resolve_mesh_path(const std::string& filename,
@@ -12,8 +14,7 @@ std::filesystem::path resolve_mesh_path(const std::string& filename,
   std::vector<fs::path> tried;
   const auto found = [&](const fs::path& p) {
     tried.push_back(p);
-    std::error_code ec;  // a name too long or a loop of links: not found, not a throw
-    return fs::is_regular_file(p, ec);
+    return core::is_regular_file(p);  // a name too long or a loop of links: not found
   };
   const std::string kPackage = "package://", kFile = "file://";
   if (filename.rfind(kFile, 0) == 0) {

@@ -30,6 +30,12 @@ inline constexpr std::uint64_t kMaxLogFileBytes = std::uint64_t{256} << 20;
 /// that size is allocated, so a 2 GB file costs nothing).
 std::string read_text_file(const std::filesystem::path& path, std::uint64_t max_bytes);
 
+/// Whether `path` is a regular file (a link to one included). A path that cannot be looked
+/// at (a name too long, a loop of links, a folder without permission) is not: never throws,
+/// where std::filesystem::is_regular_file(path) would. Call it qualified (core::is_regular_file):
+/// unqualified, argument-dependent lookup also finds the std::filesystem overloads.
+bool is_regular_file(const std::filesystem::path& path) noexcept;
+
 /// Removes the temporaries ("<name>.tmp.<pid>") that write_file_atomically calls of killed
 /// processes left in `dir`; those of processes still running stay. With `file_name`, only
 /// that file's ("<file_name>.tmp.<pid>"). A missing directory is not an error.

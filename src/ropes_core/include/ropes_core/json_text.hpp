@@ -31,6 +31,12 @@ nlohmann::json parse_json_or_discarded(const std::string& text);
 nlohmann::json read_json_file(const std::filesystem::path& path,
                               std::uint64_t max_bytes = kMaxJsonFileBytes);
 
+/// For a file that may be absent: read_json_file's value when `path` is a regular file, a
+/// discarded value (is_discarded()) when it is missing or is not JSON. A file that is there
+/// but cannot be read, or is larger than `max_bytes`, is still refused (FileFormatError).
+nlohmann::json read_json_file_if_present(const std::filesystem::path& path,
+                                         std::uint64_t max_bytes = kMaxJsonFileBytes);
+
 /// A short description of a value read from a file, for messages: a string (its first 40
 /// characters, quoted), a number, a boolean, or "a JSON object/array/null". Never dump() an
 /// untrusted value instead: its recursion is as deep as the value.

@@ -64,12 +64,8 @@ RunFacts run_facts(const fs::path& run_dir) {
   const crl::RunDirectory run = crl::RunDirectory::open(run_dir);
   f.image_side = run.config().image_size;
   f.cameras = run.config().cameras;
-  std::error_code ec;
   const fs::path manifest = run.data_dir() / "manifest.json";
-  const nlohmann::json j =
-      fs::is_regular_file(manifest, ec)
-          ? core::parse_json_or_discarded(core::read_text_file(manifest, core::kMaxJsonFileBytes))
-          : nlohmann::json();
+  const nlohmann::json j = core::read_json_file_if_present(manifest);
   const nlohmann::json::json_pointer seed("/metadata/seed");
   if (j.is_object() && j.contains(seed)) {
     if (!j[seed].is_number_unsigned())
