@@ -1,0 +1,24 @@
+#pragma once
+/// @file layers/conv2d.hpp
+/// Conv2d: a 2-D convolution with a bias per output channel.
+#include "ropes_nn/module.hpp"
+#include "ropes_nn/ops.hpp"
+
+namespace ropes::nn {
+
+/// y = conv2d(x, weight, stride, padding) + bias.  [N, in, H, W] -> [N, out, OH, OW]
+class Conv2d : public Module {
+ public:
+  Conv2d(std::int64_t in_channels, std::int64_t out_channels, std::int64_t kernel, int stride = 1,
+         Padding2d padding = Padding2d::same(), bool bias = true);
+
+ protected:
+  Tensor forward(const Tensor& x) override;
+
+ private:
+  int stride_;
+  Padding2d padding_;
+  Tensor weight_, bias_;
+};
+
+}  // namespace ropes::nn
