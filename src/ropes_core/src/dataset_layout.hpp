@@ -18,7 +18,6 @@ namespace ropes::core::detail {
 namespace fs = std::filesystem;
 using Json = nlohmann::json;
 
-inline constexpr std::uint64_t kMaxManifestBytes = std::uint64_t{64} << 20;
 inline constexpr std::uint64_t kMaxMarkerBytes = std::uint64_t{1} << 20;
 inline constexpr std::size_t kMaxColumnNameLength = 64;
 inline constexpr std::size_t kVerifyChunkBytes = std::size_t{1} << 20;

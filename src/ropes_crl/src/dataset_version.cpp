@@ -62,9 +62,8 @@ void require_run_of_current_sim_dataset(const std::filesystem::path& run_dir) {
 
 void require_run_of_current_sim_dataset(const RunDirectory& run) {
   const std::filesystem::path& data_dir = run.data_dir();
-  // a manifest may be as large as ropes_nn's DatasetReader allows (64 MiB)
   const nlohmann::json manifest =
-      json_if_readable(data_dir / "manifest.json", std::uint64_t{64} << 20);
+      json_if_readable(data_dir / "manifest.json", core::kMaxManifestBytes);
   if (!manifest.is_object() || !manifest.contains("metadata"))
     return;
   try {

@@ -212,8 +212,8 @@ int run(int argc, char** argv) {
     return 0;
   if (run_dir.empty())
     throw UsageError("--run is required (see --help)");
-  auto estimator = ropes::crl::Estimator::load(run_dir);
   const auto run = ropes::crl::RunDirectory::open(run_dir);
+  auto estimator = ropes::crl::Estimator::load(run);
   if (calibration.empty()) {
     std::vector<std::string> skipped;
     if (const auto latest = ropes::crl::latest_calibration(run, &skipped))

@@ -231,7 +231,6 @@ void check_options(const RunEvaluationOptions& options, const crl::ExperimentCon
         " camera(s) but the occlusion square is 0 px; expected an occlusion to place, or no "
         "occluded_cameras");
   const std::int64_t wanted = options.calibration_samples + options.test_samples;
-  check_protocol(options);
   if (static_cast<std::int64_t>(test.rows.size()) < wanted)
     throw std::invalid_argument(
         test.manifest.string() + ": " + std::to_string(test.rows.size()) +
@@ -512,20 +511,20 @@ void paper_numbers(RunEvaluation& ev, const RunEvaluationOptions& options) {
 }  // namespace
 
 void check_protocol(const RunEvaluationOptions& options) {
-  const auto require = [](bool ok, const char* field, std::int64_t value, const char* range) {
-    if (!ok)
+  const auto require = [](const char* field, std::int64_t value, const ProtocolRange& range) {
+    if (!range.holds(value))
       throw std::invalid_argument(std::string(field) + " is " + std::to_string(value) +
-                                  "; expected " + range);
+                                  "; expected " + range.text());
   };
-  require(options.repeats >= 1 && options.repeats <= 10000, "repeats", options.repeats, "1..10000");
-  require(options.calibration_samples >= 2, "calibration_samples", options.calibration_samples,
-          "at least 2");
-  require(options.test_samples >= 2, "test_samples", options.test_samples, "at least 2");
-  require(options.probe_steps >= 0, "probe_steps", options.probe_steps, "0 or more");
+  require("repeats", options.repeats, kRepeatsRange);
+  require("calibration_samples", options.calibration_samples, kSamplesRange);
+  require("test_samples", options.test_samples, kSamplesRange);
+  require("probe_steps", options.probe_steps, kProbeStepsRange);
 }
 
 RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
                            const RunEvaluationOptions& options) {
+  check_protocol(options);  // before a file is read
   RunEvaluation ev;
   ev.run_dir = run_dir.string();
   ev.data_dir = data_dir.string();
@@ -600,7 +599,7 @@ RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,
 std::vector<ProtocolSplit> protocol_splits(std::int64_t n, std::int64_t repeats,
                                            std::int64_t calibration, std::int64_t test,
                                            std::uint64_t seed) {
-  if (repeats < 1 || calibration < 2 || test < 2 || calibration + test > n)
+  if (repeats < 1 || calibration < 2 || test < 2 || calibration > n - test)
     throw std::invalid_argument(
         "protocol_splits: " + std::to_string(repeats) + " repeats of " +
         std::to_string(calibration) + " calibration and " + std::to_string(test) +

@@ -589,7 +589,7 @@ TEST_F(Pipeline, BadInputIsRefusedClearly) {
   o = run(kRun + " 1c-tiny --out " + (dir_ / "run_bad_flags").string() +
           " --calibration-samples 1");
   EXPECT_EQ(o.rc, 2);
-  EXPECT_NE(o.text.find("ropes-run: error: --calibration-samples is 1; expected at least 2"),
+  EXPECT_NE(o.text.find("ropes-run: error: --calibration-samples is 1; expected 2..1000000000"),
             std::string::npos)
       << o.text;
   o = run(kRun + " 1c-tiny 2c-tiny --out " + (dir_ / "run_bad_flags").string());

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdint>
 #include <set>
 #include <stdexcept>
 #include <string>
@@ -51,6 +52,38 @@ TEST(Protocol, RefusesSizesItCannotDraw) {
   expect_message([] { protocol_splits(100, 1, 1, 10, 0); }, "at least 2 samples in each set");
   // the whole of the samples may be used
   EXPECT_EQ(protocol_splits(20, 1, 10, 10, 0)[0].test.size(), 10u);
+  // counts whose sum would overflow are refused, not wrapped into a small number
+  expect_message([] { protocol_splits(100, 1, INT64_MAX, 2, 0); }, "calibration and 2 test");
+}
+
+// the protocol's counts, each at both ends of its range and just outside: the one check that
+// evaluate_run, run_suites and run_main_job (and, by the same ranges, the tools' flags) apply
+TEST(Protocol, CountsAreCheckedAtBothEndsOfTheirRanges) {
+  const RunEvaluationOptions defaults;
+  EXPECT_NO_THROW(check_protocol(defaults));
+  struct Field {
+    std::int64_t RunEvaluationOptions::*member;
+    const char* name;
+    ProtocolRange range;
+  };
+  for (const Field& f :
+       {Field{&RunEvaluationOptions::repeats, "repeats", kRepeatsRange},
+        Field{&RunEvaluationOptions::calibration_samples, "calibration_samples", kSamplesRange},
+        Field{&RunEvaluationOptions::test_samples, "test_samples", kSamplesRange},
+        Field{&RunEvaluationOptions::probe_steps, "probe_steps", kProbeStepsRange}}) {
+    RunEvaluationOptions o;
+    for (std::int64_t v : {f.range.low, f.range.high}) {
+      o.*f.member = v;
+      EXPECT_NO_THROW(check_protocol(o)) << f.name << " " << v;
+    }
+    for (std::int64_t v : {f.range.low - 1, f.range.high + 1, std::int64_t{INT64_MIN}}) {
+      o.*f.member = v;
+      expect_message([&] { check_protocol(o); }, std::string(f.name) + " is " + std::to_string(v) +
+                                                     "; expected " + f.range.text());
+    }
+  }
+  EXPECT_EQ(kRepeatsRange.text(), "1..10000");
+  EXPECT_EQ(kSamplesRange.low, 2);
 }
 
 }  // namespace

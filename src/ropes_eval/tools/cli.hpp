@@ -53,25 +53,22 @@ inline std::vector<std::string> split_list(const std::string& flag, const std::s
 }
 
 /// --repeats R, --calibration-samples C, --test-samples N and --probe-steps N into `options`,
-/// each checked as eval::check_protocol checks it, the flag named in the usage error.
+/// each in its range of eval::check_protocol, the flag named in the usage error.
 inline core::CommandLine& add_protocol_options(core::CommandLine& command_line,
                                                RunEvaluationOptions& options) {
-  const auto count = [](const char* flag, std::int64_t& field, std::int64_t low,
-                        std::int64_t high) {
-    return [flag, &field, low, high](const std::string& v) {
+  const auto count = [](const char* flag, std::int64_t* field, ProtocolRange range) {
+    return [flag, field, range](const std::string& v) {
       const auto value = parse_number<std::int64_t>(flag, v);
-      if (value < low || value > high)
-        throw UsageError(std::string(flag) + " is " + v + "; expected " +
-                         (high == INT64_MAX ? "at least " + std::to_string(low)
-                                            : std::to_string(low) + ".." + std::to_string(high)));
-      field = value;
+      if (!range.holds(value))
+        throw UsageError(std::string(flag) + " is " + v + "; expected " + range.text());
+      *field = value;
     };
   };
-  return command_line.option("--repeats", count("--repeats", options.repeats, 1, 10000))
+  return command_line.option("--repeats", count("--repeats", &options.repeats, kRepeatsRange))
       .option("--calibration-samples",
-              count("--calibration-samples", options.calibration_samples, 2, INT64_MAX))
-      .option("--test-samples", count("--test-samples", options.test_samples, 2, INT64_MAX))
-      .option("--probe-steps", count("--probe-steps", options.probe_steps, 0, INT64_MAX));
+              count("--calibration-samples", &options.calibration_samples, kSamplesRange))
+      .option("--test-samples", count("--test-samples", &options.test_samples, kSamplesRange))
+      .option("--probe-steps", count("--probe-steps", &options.probe_steps, kProbeStepsRange));
 }
 
 /// --suite's value: suites, comma-separated (ropes::eval::check_suites)

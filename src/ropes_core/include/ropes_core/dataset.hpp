@@ -54,6 +54,8 @@ struct ColumnSpec {
 /// The container's format name and version, as the manifest records them.
 inline constexpr const char* kDatasetFormat = "ropes-dataset";
 inline constexpr int kDatasetFormatVersion = 1;
+/// The largest manifest.json a reader accepts (DatasetReader::open refuses a larger one).
+inline constexpr std::uint64_t kMaxManifestBytes = std::uint64_t{64} << 20;
 
 /// Writes shard `shard` (>= 0) of the dataset in `dir`: `data[i]` is column `columns[i]`,
 /// of dtype columns[i].dtype and shape [rows, columns[i].row_shape...], with the same

@@ -8,13 +8,13 @@
 /// so those datasets are not the paper's (for example the 2C angles have variance 0.16, not
 /// the paper's 0.35). Version 3 reads it as the paper does. ropes_crl does not link the
 /// simulator; it reads the version from the manifest's metadata.
-#include "ropes_crl/run_directory.hpp"
-
 #include <ropes_core/dataset.hpp>
 
 #include <filesystem>
 
 namespace ropes::crl {
+
+class RunDirectory;  // run_directory.hpp
 
 /// The oldest sim_dataset_version (manifest metadata) that ropes-train and ropes-eval accept.
 inline constexpr int kOldestSimDatasetVersion = 3;

@@ -77,9 +77,21 @@ struct RunEvaluationOptions {
   std::filesystem::path paper_results;
 };
 
-/// The protocol's counts: repeats 1..10000, calibration_samples and test_samples at least 2,
-/// probe_steps at least 0. Throws std::invalid_argument naming the field, its value and the
-/// range. evaluate_run and run_main_job check with it.
+/// The range of one of the protocol's counts (check_protocol; the tools' flags say the same).
+struct ProtocolRange {
+  std::int64_t low, high;
+  bool holds(std::int64_t v) const { return v >= low && v <= high; }
+  std::string text() const { return std::to_string(low) + ".." + std::to_string(high); }
+};
+inline constexpr ProtocolRange kRepeatsRange{1, 10000};
+/// calibration_samples and test_samples: at least 2, at most 10^9 (their sum stays far from
+/// overflow, and no dataset holds more rows)
+inline constexpr ProtocolRange kSamplesRange{2, 1000000000};
+inline constexpr ProtocolRange kProbeStepsRange{0, 1000000000};
+
+/// The protocol's counts: repeats, calibration_samples, test_samples and probe_steps each in
+/// its range above. Throws std::invalid_argument naming the field, its value and the range.
+/// evaluate_run, run_suites and run_main_job check with it before anything is read.
 void check_protocol(const RunEvaluationOptions& options);
 
 /// One method's numbers per joint for one repeat (NaN where a latent is constant on the
@@ -161,9 +173,9 @@ struct RunEvaluation {
 /// Evaluates the run in `run_dir` on the dataset in `data_dir`. Throws std::invalid_argument
 /// when `data_dir` is the dataset the run trained on (same dataset id), when it lacks a
 /// joint of the run, when it holds fewer observational samples than calibration_samples +
-/// test_samples, when an option is out of range (occluded_cameras without an occlusion among
-/// them), when options.cache holds another run or test set, or when its images differ from the
-/// run's (cameras, size); core::FileFormatError for unreadable files.
+/// test_samples, when an option is out of range (check_protocol's counts, occluded_cameras
+/// without an occlusion), when options.cache holds another run or test set, or when its images
+/// differ from the run's (cameras, size); core::FileFormatError for unreadable files.
 RunEvaluation evaluate_run(const std::filesystem::path& run_dir,
                            const std::filesystem::path& data_dir,
                            const RunEvaluationOptions& options = {});

@@ -59,18 +59,17 @@ struct RunFacts {
   bool have_train_seed = false;
 };
 
-RunFacts run_facts(const fs::path& run_dir) {
+RunFacts run_facts(const crl::RunDirectory& run) {
   RunFacts f;
-  const crl::RunDirectory run = crl::RunDirectory::open(run_dir);
   f.image_side = run.config().image_size;
   f.cameras = run.config().cameras;
   const fs::path manifest = run.data_dir() / "manifest.json";
-  const nlohmann::json j = core::read_json_file_if_present(manifest);
+  const nlohmann::json j = core::read_json_file_if_present(manifest, core::kMaxManifestBytes);
   const nlohmann::json::json_pointer seed("/metadata/seed");
   if (j.is_object() && j.contains(seed)) {
     if (!j[seed].is_number_unsigned())
-      throw std::invalid_argument(manifest.string() + ": metadata.seed is " + j[seed].dump() +
-                                  "; expected a non-negative integer");
+      throw std::invalid_argument(manifest.string() + ": metadata.seed is " +
+                                  core::describe(j[seed]) + "; expected a non-negative integer");
     f.train_seed = j[seed].get<std::uint64_t>();
     f.have_train_seed = true;
   }
@@ -127,6 +126,7 @@ std::shared_ptr<RobotMasks> robot_masks_of(const TestData& test) {
 SuiteOutcome run_suites(const fs::path& run_dir, const SuiteOptions& args,
                         const std::function<void(const std::string&)>& log_to) {
   check_suites(args.suites);
+  check_protocol(args.evaluation);  // before anything is read or generated
   const auto log = [&log_to](const std::string& line) {
     if (log_to)
       log_to(line);
@@ -136,9 +136,10 @@ SuiteOutcome run_suites(const fs::path& run_dir, const SuiteOptions& args,
   const int threads = args.threads;
   const std::set<std::string> wanted(args.suites.begin(), args.suites.end());
   const fs::path report_dir = crl::evaluation_output(run_dir, args.out, "report");
-  const RunFacts facts = run_facts(run_dir);
+  const crl::RunDirectory run = crl::RunDirectory::open(run_dir);
+  const RunFacts facts = run_facts(run);
   // a run trained on a dataset of the old TN(mean, x) reading: refused before anything runs
-  ropes::crl::require_run_of_current_sim_dataset(run_dir);
+  ropes::crl::require_run_of_current_sim_dataset(run);
   EvaluationReport report;
   const bool occlusion = wanted.count("occlusion") != 0;
   // occlusion squares larger than the image are left out with a note
