@@ -18,12 +18,15 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   static const core::fuzz::ScratchDir scratch;
   const auto file =
       scratch.write("config.json", std::string(reinterpret_cast<const char*>(data), size));
+  crl::ExperimentConfig config;
   try {
-    const crl::ExperimentConfig config = crl::load_experiment_config(file.string());
-    const crl::ExperimentConfig again = crl::ExperimentConfig::from_json(config.to_json(), "again");
-    if (again.to_json() != config.to_json())
-      std::abort();
+    config = crl::load_experiment_config(file.string());
   } catch (const ropes::core::FileFormatError&) {  // ConfigError among them
+    return 0;
   }
+  // a config that loaded reads back: any exception here escapes as a finding
+  const crl::ExperimentConfig again = crl::ExperimentConfig::from_json(config.to_json(), "again");
+  if (again.to_json() != config.to_json())
+    std::abort();
   return 0;
 }

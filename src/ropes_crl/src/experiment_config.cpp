@@ -287,9 +287,9 @@ fs::path installed_config_dir() {
 
 ExperimentConfig load_experiment_config(const std::string& name_or_path) {
   fs::path path = name_or_path;
-  if (!fs::is_regular_file(path)) {
+  if (!core::is_regular_file(path)) {
     const fs::path installed = installed_config_dir() / (name_or_path + ".json");
-    if (!fs::is_regular_file(installed)) {
+    if (!core::is_regular_file(installed)) {
       std::string names;
       std::error_code ec;
       for (const auto& e : fs::directory_iterator(installed_config_dir(), ec))

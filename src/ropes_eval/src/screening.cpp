@@ -61,7 +61,7 @@ Screening screen_run(const fs::path& run_dir, const ScreeningOptions& options) {
 
   // the codes of stage 1, row for row with the training set
   const fs::path codes_path = run.codes_file();
-  if (!fs::is_regular_file(codes_path))
+  if (!core::is_regular_file(codes_path))
     throw core::FileFormatError(codes_path.string() +
                                 " is missing: AE1 has not finished (ropes-train --stages ae1 "
                                 "writes it)");

@@ -52,8 +52,7 @@ fs::path installed_config(const std::string& name) {
   if (!core::is_plain_name(name))
     return {};
   const fs::path p = sim::installed_dataset_configs_dir() / (name + ".json");
-  std::error_code ec;
-  return fs::is_regular_file(p, ec) ? p : fs::path();
+  return core::is_regular_file(p) ? p : fs::path();
 }
 
 }  // namespace
@@ -87,7 +86,7 @@ TestData ensure_test_data(const TestDataRequest& request) {
   const crl::RunDirectory run = crl::RunDirectory::open(request.run_dir);
   const fs::path& train_dir = run.data_dir();
   const fs::path manifest = train_dir / "manifest.json";
-  if (train_dir.empty() || !fs::is_regular_file(manifest))
+  if (train_dir.empty() || !core::is_regular_file(manifest))
     throw std::invalid_argument(
         run.run_file().string() + ": its training set '" + train_dir.string() +
         "' has no manifest.json; the suites take their configs from it (or pass --data DIR)");
