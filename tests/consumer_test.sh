@@ -64,6 +64,14 @@ echo "== consumer: the pipeline API (ropes_eval::pipeline) runs the main job and
   || { cat "$work/pipeline.out"; echo "FAIL: the pipeline consumer" >&2; exit 1; }
 grep "^pipeline consumer" "$work/pipeline.out"
 
+echo "== consumer: allocation_counter.hpp (it defines malloc) is no header of ropes_nn's library"
+if [ -n "$(find "$install_dir" -path '*/include/ropes_nn/allocation_counter.hpp')" ] ||
+  [ -z "$(find "$install_dir" -path '*/share/ropes_nn/test_support/ropes_nn/allocation_counter.hpp')" ]
+then
+  echo "FAIL: allocation_counter.hpp is on ropes_nn's include path, or not in its test_support" >&2
+  exit 1
+fi
+
 echo "== consumer: find_package(ropes_nn 1.0) must fail with CMake's version message"
 if cmake -S "$here/consumer" -B "$work/bad" -DROPES_NN_VERSION=1.0 > "$work/bad.log" 2>&1; then
   cat "$work/bad.log"

@@ -18,7 +18,7 @@
 #
 # ropes_add_library() adds a library the way every package declares one: the alias
 # <name>::<export name> (EXPORT_NAME, default the target's name), C++17 for its users, the
-# package's include/ on their include path (installed as include/), and position-independent
+# package's include/ (when it has one) on their include path, and position-independent
 # code, so that a user's shared library can link the static library.
 #
 # ropes_find_streaming(<var> <what>) is the option ROPES_WITH_DDS of a package whose streaming
@@ -81,9 +81,11 @@ function(ropes_add_library target)
   add_library(${PROJECT_NAME}::${_name} ALIAS ${target})
   set_target_properties(${target} PROPERTIES EXPORT_NAME ${_name} POSITION_INDEPENDENT_CODE ON)
   target_compile_features(${target} PUBLIC cxx_std_17)
-  target_include_directories(${target} PUBLIC
-    $<BUILD_INTERFACE:${PROJECT_SOURCE_DIR}/include>
-    $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
+  if(IS_DIRECTORY "${PROJECT_SOURCE_DIR}/include")  # CMake refuses a missing include path
+    target_include_directories(${target} PUBLIC
+      $<BUILD_INTERFACE:${PROJECT_SOURCE_DIR}/include>
+      $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
+  endif()
 endfunction()
 
 macro(ropes_find_streaming var what)

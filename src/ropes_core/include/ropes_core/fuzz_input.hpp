@@ -12,16 +12,11 @@
 /// the input, and the input goes to fuzz/regressions/ once fixed.
 #include "ropes_core/scratch_dir.hpp"
 
-#include <unistd.h>
-
 #include <cstddef>
 #include <cstdint>
-#include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <stdexcept>
 #include <string>
-#include <system_error>
 #include <utility>
 #include <vector>
 

@@ -1,8 +1,9 @@
 #pragma once
 /// @file scratch_dir.hpp
 /// ScratchDir: a private temporary folder for a test or a fuzz harness, gone with the object.
-#include <stdlib.h>
+#include <stdlib.h>  // mkdtemp
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <stdexcept>

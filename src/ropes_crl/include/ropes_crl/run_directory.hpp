@@ -41,7 +41,8 @@ class RunDirectory {
   /// Opens `dir` and reads RUN/run.json, at any stage of training. Throws
   /// core::FileFormatError naming run.json: missing ("is 'DIR' a run directory of
   /// ropes-train?"), unreadable, not JSON, not format "ropes-run", or a field missing or of
-  /// another type (config, joints, data_dir, dataset, seed), with the field named.
+  /// another type (config, joints, data_dir, dataset, seed), with the field named; a config
+  /// that is not one is a core::ConfigError (a FileFormatError) naming run.json and the field.
   static RunDirectory open(const std::filesystem::path& dir);
 
   const std::filesystem::path& dir() const { return dir_; }

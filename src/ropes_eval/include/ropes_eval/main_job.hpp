@@ -51,7 +51,8 @@ struct MainJobResult {
 /// Runs (or resumes) the job. `log` gets progress lines with their stage (1 generate,
 /// 2 train, 3 evaluate); may be empty. Throws std::invalid_argument for options out of range
 /// or an unknown dataset config, core::ConfigError for an unknown or invalid experiment
-/// config (both before anything is written), std::runtime_error for an OUT that
+/// config, core::FileFormatError for one that is not JSON (all before anything is written),
+/// std::runtime_error for an OUT that
 /// holds another job or a symbolic link where the job writes; errors of the stages pass
 /// through.
 MainJobResult run_main_job(const MainJobOptions& options,

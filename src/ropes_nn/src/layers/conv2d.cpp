@@ -10,10 +10,10 @@ namespace ropes::nn {
 Conv2d::Conv2d(std::int64_t in_channels, std::int64_t out_channels, std::int64_t kernel, int stride,
                Padding2d padding, bool bias)
     : stride_(stride), padding_(padding) {
-  detail::require_positive("Conv2d", "in_channels", in_channels);
-  detail::require_positive("Conv2d", "out_channels", out_channels);
-  detail::require_positive("Conv2d", "kernel", kernel);
-  detail::require_positive("Conv2d", "stride", stride);
+  layer_checks::require_positive("Conv2d", "in_channels", in_channels);
+  layer_checks::require_positive("Conv2d", "out_channels", out_channels);
+  layer_checks::require_positive("Conv2d", "kernel", kernel);
+  layer_checks::require_positive("Conv2d", "stride", stride);
   weight_ = register_parameter("weight", Shape{out_channels, in_channels, kernel, kernel},
                                "lecun_normal", in_channels * kernel * kernel);
   if (bias)
@@ -21,7 +21,7 @@ Conv2d::Conv2d(std::int64_t in_channels, std::int64_t out_channels, std::int64_t
 }
 
 Tensor Conv2d::forward(const Tensor& x) {
-  return detail::add_channel_bias(conv2d(x, weight_, stride_, padding_), bias_);
+  return layer_checks::add_channel_bias(conv2d(x, weight_, stride_, padding_), bias_);
 }
 
 }  // namespace ropes::nn

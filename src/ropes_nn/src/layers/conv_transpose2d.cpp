@@ -10,10 +10,10 @@ namespace ropes::nn {
 ConvTranspose2d::ConvTranspose2d(std::int64_t in_channels, std::int64_t out_channels,
                                  std::int64_t kernel, int stride, Padding2d padding, bool bias)
     : stride_(stride), padding_(padding) {
-  detail::require_positive("ConvTranspose2d", "in_channels", in_channels);
-  detail::require_positive("ConvTranspose2d", "out_channels", out_channels);
-  detail::require_positive("ConvTranspose2d", "kernel", kernel);
-  detail::require_positive("ConvTranspose2d", "stride", stride);
+  layer_checks::require_positive("ConvTranspose2d", "in_channels", in_channels);
+  layer_checks::require_positive("ConvTranspose2d", "out_channels", out_channels);
+  layer_checks::require_positive("ConvTranspose2d", "kernel", kernel);
+  layer_checks::require_positive("ConvTranspose2d", "stride", stride);
   // Flax's ConvTranspose computes fan_in over the kernel's input channels and window
   weight_ = register_parameter("weight", Shape{in_channels, out_channels, kernel, kernel},
                                "lecun_normal", in_channels * kernel * kernel);
@@ -22,7 +22,7 @@ ConvTranspose2d::ConvTranspose2d(std::int64_t in_channels, std::int64_t out_chan
 }
 
 Tensor ConvTranspose2d::forward(const Tensor& x) {
-  return detail::add_channel_bias(conv_transpose2d(x, weight_, stride_, padding_), bias_);
+  return layer_checks::add_channel_bias(conv_transpose2d(x, weight_, stride_, padding_), bias_);
 }
 
 }  // namespace ropes::nn

@@ -8,8 +8,8 @@
 namespace ropes::nn {
 
 Dense::Dense(std::int64_t in_features, std::int64_t out_features, bool bias) {
-  detail::require_positive("Dense", "in_features", in_features);
-  detail::require_positive("Dense", "out_features", out_features);
+  layer_checks::require_positive("Dense", "in_features", in_features);
+  layer_checks::require_positive("Dense", "out_features", out_features);
   weight_ =
       register_parameter("weight", Shape{in_features, out_features}, "lecun_normal", in_features);
   if (bias)

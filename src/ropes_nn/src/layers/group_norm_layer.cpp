@@ -9,7 +9,7 @@
 namespace ropes::nn {
 
 GroupNorm::GroupNorm(std::int64_t channels, int groups, float eps) : eps_(eps) {
-  detail::require_positive("GroupNorm", "channels", channels);
+  layer_checks::require_positive("GroupNorm", "channels", channels);
   groups_ = groups > 0 ? groups : static_cast<int>(std::min<std::int64_t>(32, channels));
   if (channels % groups_ != 0) {
     throw std::invalid_argument("GroupNorm: " + std::to_string(groups_) + " groups for " +

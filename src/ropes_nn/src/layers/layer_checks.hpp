@@ -7,7 +7,7 @@
 #include "ropes_nn/ops.hpp"
 #include "ropes_nn/tensor.hpp"
 
-namespace ropes::nn::detail {
+namespace ropes::nn::layer_checks {
 
 // a layer's size argument below 1: std::invalid_argument naming the layer and the argument
 inline void require_positive(const char* layer, const char* what, std::int64_t value) {
@@ -22,4 +22,4 @@ inline Tensor add_channel_bias(const Tensor& y, const Tensor& bias) {
   return bias.defined() ? add(y, reshape(bias, Shape{1, bias.numel(), 1, 1})) : y;
 }
 
-}  // namespace ropes::nn::detail
+}  // namespace ropes::nn::layer_checks
