@@ -110,7 +110,7 @@ DatasetConfig DatasetConfig::load(const std::filesystem::path& path) {
   const Json config = detail::read_config_object(path, "dataset config");
   only_fields(config,
               {"name", "source", "notes", "distribution", "robot", "rig", "image", "anchors",
-               "anchors_per_shard"},
+               "anchors_per_shard", "test_sets"},
               file, "");
 
   DatasetConfig c;
@@ -167,6 +167,23 @@ DatasetConfig DatasetConfig::load(const std::filesystem::path& path) {
   c.anchors = integer(required(config, "anchors", file, ""), file, "anchors", 1, 1LL << 40);
   c.anchors_per_shard = integer(required(config, "anchors_per_shard", file, ""), file,
                                 "anchors_per_shard", 1, 1LL << 20);
+  if (config.contains("test_sets")) {
+    const Json& sets = config["test_sets"];
+    if (!sets.is_object())
+      fail(file, std::string("test_sets is a JSON ") + sets.type_name() +
+                     "; expected an object of suites and dataset config names, "
+                     "{\"ood\": NAME, \"causal\": NAME}");
+    for (const auto& [suite, name] : sets.items()) {
+      if (suite != "ood" && suite != "causal")
+        fail(file, "test_sets has the suite '" + suite.substr(0, 64) +
+                       "'; expected ood or causal (id is the training config itself)");
+      const std::string n = text(name, file, "test_sets." + suite);
+      if (!core::is_plain_name(n))
+        fail(file, "test_sets." + suite + " is '" + n.substr(0, 64) +
+                       "'; expected the name of an installed dataset config");
+      c.test_sets[suite] = n;
+    }
+  }
   return c;
 }
 

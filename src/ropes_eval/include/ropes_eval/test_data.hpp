@@ -35,9 +35,12 @@ struct TestData {
   std::int64_t shards_written = 0;    // by this call (0: the cache had it)
 };
 
-/// The dataset config a suite uses for a run trained on `train_config` (e.g. small-2c):
-/// id -> small-2c, ood -> small-2c_ood, causal -> small-2c_causal. Empty when the paper
-/// defines no such test set for the setting (1C has one distribution: no ood, no causal).
+/// The dataset config a suite uses for a run trained on the installed config `train_config`:
+/// id -> the config itself; ood and causal -> the names its "test_sets" field gives
+/// (small-2c: small-2c_ood, small-2c_causal; sim::DatasetConfig::test_sets). Empty when the
+/// config names none for the suite (the 1C configs: the paper defines no OOD or causal test
+/// set for one camera) or is no installed config. Throws sim::ConfigError for an installed
+/// config that does not load.
 std::string suite_config_name(const std::string& train_config, const std::string& distribution);
 
 /// The dataset config `name_or_path`: a file, or the installed ropes_sim config of that

@@ -67,19 +67,14 @@ fs::path installed_dataset_config(const std::string& name_or_path) {
 }
 
 std::string suite_config_name(const std::string& train_config, const std::string& distribution) {
-  // <preset>-<setting>: the setting without "_causal" is the camera rig's
-  const auto dash = train_config.rfind('-');
-  const std::string preset = dash == std::string::npos ? "" : train_config.substr(0, dash + 1);
-  std::string setting = dash == std::string::npos ? train_config : train_config.substr(dash + 1);
   if (distribution == "id")
     return train_config;
-  const auto causal = setting.find("_causal");
-  if (causal != std::string::npos)
-    setting.erase(causal);
-  if (setting != "2c")  // the paper defines OOD and causal test sets for two cameras only
+  const fs::path file = installed_config(train_config);
+  if (file.empty())
     return "";
-  const std::string name = preset + setting + (distribution == "ood" ? "_ood" : "_causal");
-  return installed_config(name).empty() ? "" : name;
+  const sim::DatasetConfig config = sim::DatasetConfig::load(file);
+  const auto named = config.test_sets.find(distribution);
+  return named == config.test_sets.end() ? "" : named->second;
 }
 
 TestData ensure_test_data(const TestDataRequest& request) {
@@ -101,9 +96,11 @@ TestData ensure_test_data(const TestDataRequest& request) {
                                 train_config + "'");
   const fs::path file = installed_config(name);
   if (file.empty())
-    throw std::invalid_argument(manifest.string() + ": the training set's config '" + train_config +
-                                "' is not an installed ropes_sim config; generate a test set "
-                                "with ropes-generate and pass it with --data DIR");
+    throw std::invalid_argument(
+        manifest.string() + ": the " + request.distribution + " test set's config '" + name +
+        "' (of the training set's config '" + train_config +
+        "') is not an installed ropes_sim config; generate a test set with ropes-generate and "
+        "pass it with --data DIR");
   sim::DatasetConfig config = sim::DatasetConfig::load(file);
   // the test set shows the robot as the training set did: the same rig and image size
   const nlohmann::json ours = nlohmann::json::parse(config.to_json());
