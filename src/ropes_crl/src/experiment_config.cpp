@@ -30,7 +30,7 @@ OptimizerConfig parse_optimizer(const nlohmann::json& j, const std::string& wher
     throw std::invalid_argument(where +
                                 ": expected lr > 0, final_lr >= 0, warmup >= 0 and "
                                 "clip_norm >= 0, got " +
-                                j.dump());
+                                core::describe(j));
   if (o.schedule != "constant" && o.schedule != "cosine")
     throw std::invalid_argument(where + ".schedule: expected \"constant\" or \"cosine\", got \"" +
                                 o.schedule + "\"");
@@ -131,7 +131,8 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
       c.ae1_training.steps = get_int(a1, "config.ae1", "steps");
       require_positive(c.ae1_training.steps, "config.ae1.steps");
     } else if (!(get_double(a1, "config.ae1", "epochs") > 0)) {
-      throw std::invalid_argument("config.ae1.epochs: expected > 0, got " + a1["epochs"].dump());
+      throw std::invalid_argument("config.ae1.epochs: expected > 0, got " +
+                                  core::describe(a1["epochs"]));
     }
     c.ae1_training.optimizer =
         parse_optimizer(field(a1, "config.ae1", "optimizer"), "config.ae1.optimizer");
@@ -142,7 +143,7 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
         throw std::invalid_argument(aug +
                                     ": expected an object {\"probability\", \"min_size\", "
                                     "\"max_size\"}, got " +
-                                    o.dump());
+                                    core::describe(o));
       reject_unknown_keys(o, aug, {"probability", "min_size", "max_size"});
       OcclusionAugmentation& a = c.ae1_training.occlusion_augmentation;
       a.probability = get_double(o, aug, "probability");
@@ -150,7 +151,7 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
       a.max_size = get_int(o, aug, "max_size");
       if (!(a.probability > 0 && a.probability <= 1))
         throw std::invalid_argument(aug + ".probability: expected in (0, 1], got " +
-                                    o["probability"].dump());
+                                    core::describe(o["probability"]));
       if (a.min_size < 1 || a.max_size < a.min_size || a.max_size > c.image_size)
         throw std::invalid_argument(aug + ": min_size " + std::to_string(a.min_size) +
                                     ", max_size " + std::to_string(a.max_size) +
@@ -203,7 +204,7 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
     require_positive(c.ldr_training.patience, "config.ldr.patience");
     if (!(c.ldr_training.held_out_fraction > 0 && c.ldr_training.held_out_fraction < 1))
       throw std::invalid_argument("config.ldr.held_out_fraction: expected in (0, 1), got " +
-                                  l["held_out_fraction"].dump());
+                                  core::describe(l["held_out_fraction"]));
     c.ldr_training.optimizer =
         parse_optimizer(field(l, "config.ldr", "optimizer"), "config.ldr.optimizer");
 
@@ -234,7 +235,8 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
                                   t.mode + "\"");
     t.lambda = get_double(a2, "config.ae2", "lambda");
     if (!(t.lambda >= 0))
-      throw std::invalid_argument("config.ae2.lambda: expected >= 0, got " + a2["lambda"].dump());
+      throw std::invalid_argument("config.ae2.lambda: expected >= 0, got " +
+                                  core::describe(a2["lambda"]));
     t.norm = parse_sparsity_norm(get_string(a2, "config.ae2", "sparsity_norm"));
     if (a2.contains("sparsity_diagonal"))
       t.diagonal = parse_sparsity_diagonal(get_string(a2, "config.ae2", "sparsity_diagonal"));

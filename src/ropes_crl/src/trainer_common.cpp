@@ -96,7 +96,7 @@ nlohmann::json open_run(const ExperimentConfig& config, const TrainingData& data
     if (!run.is_object() || !run.contains("format") || run["format"] != kRunFormat)
       throw std::invalid_argument(
           run_json.string() + ": not a ropes run (format " +
-          (run.is_object() && run.contains("format") ? run["format"].dump() : "missing") +
+          (run.is_object() && run.contains("format") ? core::describe(run["format"]) : "missing") +
           ", expected \"" + kRunFormat + "\")");
     for (const auto& [key, value] : identity.items())
       if (run[key] != value)
@@ -104,7 +104,7 @@ nlohmann::json open_run(const ExperimentConfig& config, const TrainingData& data
             run_dir.string() + " holds a run with another " + key + " (" +
             (key == "config" && run[key].is_object() && run[key]["name"].is_string()
                  ? run[key]["name"].get<std::string>()
-                 : run[key].dump()) +
+                 : core::describe(run[key])) +
             ", this one: " + (key == "config" ? config.name : value.dump()) +
             "); choose another --out or remove it");
     // resumed by another build: its weights may differ in the last bits from what the first

@@ -8,6 +8,7 @@
 
 #include "json_config.hpp"
 #include "ropes_core/file_io.hpp"
+#include "ropes_core/json_text.hpp"
 #include "ropes_core/package_share.hpp"
 #include "ropes_core/plain_name.hpp"
 #include "ropes_sim/intervention_sampler.hpp"
@@ -43,21 +44,21 @@ const Json& required(const Json& object, const char* key, const std::string& fil
 
 double number(const Json& v, const std::string& file, const std::string& field) {
   if (!v.is_number())
-    fail(file, field + " is " + v.dump() + "; expected a number");
+    fail(file, field + " is " + core::describe(v) + "; expected a number");
   return v.get<double>();
 }
 
 std::int64_t integer(const Json& v, const std::string& file, const std::string& field,
                      std::int64_t lo, std::int64_t hi) {
   if (!v.is_number_integer() || v.get<std::int64_t>() < lo || v.get<std::int64_t>() > hi)
-    fail(file, field + " is " + v.dump() + "; expected an integer in [" + std::to_string(lo) +
-                   ", " + std::to_string(hi) + "]");
+    fail(file, field + " is " + core::describe(v) + "; expected an integer in [" +
+                   std::to_string(lo) + ", " + std::to_string(hi) + "]");
   return v.get<std::int64_t>();
 }
 
 std::string text(const Json& v, const std::string& file, const std::string& field) {
   if (!v.is_string() || v.get<std::string>().empty())
-    fail(file, field + " is " + v.dump() + "; expected a non-empty string");
+    fail(file, field + " is " + core::describe(v) + "; expected a non-empty string");
   return v.get<std::string>();
 }
 
@@ -71,7 +72,7 @@ Camera camera(const Json& v, const std::string& file, const std::string& field) 
   if (v.contains("target")) {
     const Json& t = v["target"];
     if (!t.is_array() || t.size() != 3)
-      fail(file, field + ".target is " + t.dump() + "; expected [x, y, z]");
+      fail(file, field + ".target is " + core::describe(t) + "; expected [x, y, z]");
     for (int i = 0; i < 3; ++i)
       c.target[i] = number(t[static_cast<std::size_t>(i)], file, field + ".target");
   }
@@ -147,15 +148,15 @@ DatasetConfig DatasetConfig::load(const std::filesystem::path& path) {
     c.rig.name = text(required(rig, "name", file, "rig "), file, "rig.name");
     const Json& cameras = required(rig, "cameras", file, "rig ");
     if (!cameras.is_array() || cameras.empty())
-      fail(file, "rig.cameras is " + cameras.dump() + "; expected a non-empty array");
+      fail(file, "rig.cameras is " + core::describe(cameras) + "; expected a non-empty array");
     for (std::size_t i = 0; i < cameras.size(); ++i)
       c.rig.cameras.push_back(camera(cameras[i], file, "rig.cameras[" + std::to_string(i) + "]"));
   } else {
-    fail(file, "rig is " + rig.dump() + "; expected a rig name or object");
+    fail(file, "rig is " + core::describe(rig) + "; expected a rig name or object");
   }
   const Json& image = required(config, "image", file, "");
   if (!image.is_object())
-    fail(file, "image is " + image.dump() + "; expected {width, height}");
+    fail(file, "image is " + core::describe(image) + "; expected {width, height}");
   only_fields(image, {"width", "height"}, file, "image ");
   c.rig.width = static_cast<int>(
       integer(required(image, "width", file, "image "), file, "image.width", 8, 4096));
