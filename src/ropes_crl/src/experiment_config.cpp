@@ -27,10 +27,12 @@ OptimizerConfig parse_optimizer(const nlohmann::json& j, const std::string& wher
   o.warmup = get_int(j, where, "warmup");
   o.clip_norm = get_double(j, where, "clip_norm");
   if (!(o.lr > 0) || o.final_lr < 0 || o.warmup < 0 || o.clip_norm < 0)
-    throw std::invalid_argument(where +
-                                ": expected lr > 0, final_lr >= 0, warmup >= 0 and "
-                                "clip_norm >= 0, got " +
-                                core::describe(j));
+    throw std::invalid_argument(
+        where +
+        ": expected lr > 0, final_lr >= 0, warmup >= 0 and "
+        "clip_norm >= 0, got lr " +
+        core::describe(j["lr"]) + ", final_lr " + core::describe(j["final_lr"]) + ", warmup " +
+        core::describe(j["warmup"]) + ", clip_norm " + core::describe(j["clip_norm"]));
   if (o.schedule != "constant" && o.schedule != "cosine")
     throw std::invalid_argument(where + ".schedule: expected \"constant\" or \"cosine\", got \"" +
                                 o.schedule + "\"");

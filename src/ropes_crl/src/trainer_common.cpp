@@ -105,7 +105,7 @@ nlohmann::json open_run(const ExperimentConfig& config, const TrainingData& data
             (key == "config" && run[key].is_object() && run[key]["name"].is_string()
                  ? run[key]["name"].get<std::string>()
                  : core::describe(run[key])) +
-            ", this one: " + (key == "config" ? config.name : value.dump()) +
+            ", this one: " + (key == "config" ? config.name : core::describe(value)) +
             "); choose another --out or remove it");
     // resumed by another build: its weights may differ in the last bits from what the first
     // build would have written; recorded beside the first, once per build (not per resume, and

@@ -187,8 +187,7 @@ SuiteOutcome run_suites(const fs::path& run_dir, const SuiteOptions& args,
       } catch (const std::invalid_argument& e) {
         if (d == "id")
           throw;
-        report.notes.push_back(d + ": " + e.what() +
-                               " (the paper defines OOD and causal test sets for two cameras)");
+        report.notes.push_back(d + ": " + e.what());
         log(report.notes.back());
         continue;
       }

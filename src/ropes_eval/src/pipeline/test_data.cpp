@@ -92,14 +92,19 @@ TestData ensure_test_data(const TestDataRequest& request) {
       meta.contains("config") && meta["config"].is_object() ? meta["config"].value("name", "") : "";
   const std::string name = suite_config_name(train_config, request.distribution);
   if (name.empty())
-    throw std::invalid_argument("no " + request.distribution + " test set is defined for '" +
-                                train_config + "'");
+    throw std::invalid_argument(
+        "no " + request.distribution + " test set is defined for '" + train_config +
+        "' (its installed config names none in test_sets; the paper defines OOD and causal "
+        "test sets for two cameras)");
   const fs::path file = installed_config(name);
   if (file.empty())
     throw std::invalid_argument(
-        manifest.string() + ": the " + request.distribution + " test set's config '" + name +
-        "' (of the training set's config '" + train_config +
-        "') is not an installed ropes_sim config; generate a test set with ropes-generate and "
+        manifest.string() + ": " +
+        (request.distribution == "id"
+             ? "the training set's config '" + train_config + "'"
+             : "the " + request.distribution + " test set's config '" + name +
+                   "' (test_sets of the training set's config '" + train_config + "')") +
+        " is not an installed ropes_sim config; generate a test set with ropes-generate and "
         "pass it with --data DIR");
   sim::DatasetConfig config = sim::DatasetConfig::load(file);
   // the test set shows the robot as the training set did: the same rig and image size

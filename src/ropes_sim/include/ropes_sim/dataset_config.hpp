@@ -12,6 +12,8 @@
 ///   image              {width, height}: pixels, each in [8, 4096]
 ///   anchors            anchors in the dataset, >= 1
 ///   anchors_per_shard  anchors per shard file, >= 1
+///   test_sets          optional, of a training config: {"ood": NAME, "causal": NAME}, the
+///                      installed configs of ropes-eval's OOD and causal suites
 /// Unknown fields are errors, so that a misspelt one is not silently ignored.
 
 #include <cstdint>
