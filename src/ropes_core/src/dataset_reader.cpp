@@ -1,6 +1,7 @@
 // The dataset container's reader: DatasetReader.
 #include "ropes_core/dataset.hpp"
 
+#include <sys/mman.h>
 #include <sys/resource.h>
 
 #include <nlohmann/json.hpp>
@@ -200,6 +201,35 @@ const std::vector<ColumnSpec>& DatasetReader::columns() const {
 const ColumnSpec& DatasetReader::column(const std::string& name) const {
   return state_->columns[state_->column_index(name)];
 }
+std::int64_t DatasetReader::shard_rows(int shard) const {
+  if (shard < 0 || shard >= shard_count()) {
+    throw std::out_of_range("DatasetReader: no shard " + std::to_string(shard) + " in " +
+                            state_->dir.string() + "; it has " + std::to_string(shard_count()));
+  }
+  return state_->shard_first[static_cast<std::size_t>(shard) + 1] -
+         state_->shard_first[static_cast<std::size_t>(shard)];
+}
+
+DatasetReader::MappedRows DatasetReader::map_shard(const std::string& column, int shard) const {
+  const std::size_t c = state_->column_index(column);
+  const std::int64_t rows = shard_rows(shard);
+  const State::File& f =
+      state_->files[static_cast<std::size_t>(shard) * state_->columns.size() + c];
+  const std::size_t length = static_cast<std::size_t>(f.data_offset + f.bytes);
+  void* base = ::mmap(nullptr, length, PROT_READ, MAP_SHARED, f.fd.get(), 0);
+  if (base == MAP_FAILED)
+    fail(f.name, std::string("cannot be memory-mapped: ") + std::strerror(errno));
+  MappedRows m;
+  m.mapping = std::shared_ptr<const void>(
+      base, [length](const void* p) { ::munmap(const_cast<void*>(p), length); });
+  m.data = static_cast<const std::uint8_t*>(base) + f.data_offset;
+  m.dtype = state_->columns[c].dtype;
+  m.shape = {rows};
+  m.shape.insert(m.shape.end(), state_->columns[c].row_shape.begin(),
+                 state_->columns[c].row_shape.end());
+  return m;
+}
+
 const std::string& DatasetReader::metadata_json() const {
   return state_->metadata;
 }

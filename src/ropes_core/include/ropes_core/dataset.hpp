@@ -171,6 +171,22 @@ class DatasetReader {
   /// As above, into a new array of shape [rows.size(), row_shape...].
   NpyArray read_rows_at(const std::string& column, const std::vector<std::int64_t>& rows) const;
 
+  /// Rows of shard `shard`; std::out_of_range outside [0, shard_count()).
+  std::int64_t shard_rows(int shard) const;
+
+  /// Shard `shard`'s rows of `column`, memory-mapped read-only from the file open() checked:
+  /// no copy is made, pages are read when touched. `data` holds shard_rows(shard) rows, C
+  /// order; the mapping lives as long as any copy of `mapping`, also after the reader is
+  /// destroyed. Throws std::out_of_range for an unknown column or shard, FileFormatError
+  /// naming the file when it cannot be mapped.
+  struct MappedRows {
+    std::shared_ptr<const void> mapping;
+    const std::uint8_t* data = nullptr;
+    DType dtype = DType::kU8;
+    std::vector<std::int64_t> shape;  // [shard rows, row_shape...]
+  };
+  MappedRows map_shard(const std::string& column, int shard) const;
+
   /// Recomputes the SHA-256 of every shard file (through the open descriptors, so it checks
   /// what read_rows() serves) and compares it with the manifest. Throws FileFormatError
   /// naming the file, the expected and the actual hash on the first mismatch. Cost: reads
