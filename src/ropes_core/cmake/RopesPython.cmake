@@ -3,7 +3,8 @@
 #
 #   ropes_add_python_module(<name> SOURCES <cpp>... LIBRARIES <targets>...
 #                           [PYTHON_FILES <py>...])
-#   ropes_add_pytest(<test name> DIRECTORY <dir> [TIMEOUT <s>] [LABELS <labels>...])
+#   ropes_add_pytest(<test name> DIRECTORY <dir> [TIMEOUT <s>] [LABELS <labels>...]
+#                    [ENVIRONMENT <VAR=value>...])
 #
 # ROPES_PYTHON (cache: AUTO, the default, ON or OFF) decides whether they do anything: AUTO
 # builds the bindings when pybind11 and numpy are found for the interpreter, ON requires them
@@ -21,7 +22,8 @@
 # the package's install prefix: where colcon's setup.bash puts PYTHONPATH.
 #
 # ropes_add_pytest() runs pytest on DIRECTORY as one ctest test (label python, plus LABELS),
-# with the install prefix's site-packages first on PYTHONPATH, and writes pytest's JUnit XML
+# with the install prefix's site-packages first on PYTHONPATH and the ENVIRONMENT variables
+# set (generator expressions allowed: the path of a tool to compare with), and writes pytest's JUnit XML
 # into the build directory, so that colcon test-result counts each Python test.
 include_guard(GLOBAL)
 
@@ -87,7 +89,7 @@ function(ropes_add_python_module name)
 endfunction()
 
 function(ropes_add_pytest test_name)
-  cmake_parse_arguments(_t "" "DIRECTORY;TIMEOUT" "LABELS" ${ARGN})
+  cmake_parse_arguments(_t "" "DIRECTORY;TIMEOUT" "LABELS;ENVIRONMENT" ${ARGN})
   if(NOT ROPES_PYTHON_ENABLED OR NOT BUILD_TESTING)
     return()
   endif()
@@ -100,6 +102,7 @@ function(ropes_add_pytest test_name)
             -o junit_suite_name=${test_name} "${_t_DIRECTORY}"
     WORKING_DIRECTORY "${PROJECT_BINARY_DIR}")
   set_tests_properties(${test_name} PROPERTIES LABELS "python;${_t_LABELS}" TIMEOUT ${_t_TIMEOUT}
+    ENVIRONMENT "${_t_ENVIRONMENT}"
     ENVIRONMENT_MODIFICATION
       "PYTHONPATH=path_list_prepend:${CMAKE_INSTALL_PREFIX}/${ROPES_PYTHON_SITE}")
 endfunction()

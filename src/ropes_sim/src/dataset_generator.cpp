@@ -421,6 +421,8 @@ GenerateResult generate_dataset(const DatasetConfig& config, const GenerateOptio
                              " images, " + std::to_string(static_cast<int>(images / seconds)) +
                              " images/s");
       }
+      if (options.keep_going && !options.keep_going())
+        return result;
     }
   }
 

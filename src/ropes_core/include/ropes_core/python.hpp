@@ -158,6 +158,11 @@ py::array_t<T> to_numpy(std::vector<T>&& values, std::vector<py::ssize_t> shape)
   return py::array_t<T>(shape, owner->data(), free_owner);
 }
 
+/// os.fspath(obj) as a string: a str, or a pathlib.Path (TypeError for anything else).
+inline std::string fspath(const py::handle& obj) {
+  return py::str(py::module_::import("os").attr("fspath")(obj));
+}
+
 /// JSON as Python objects (dict, list, str, float, int, bool, None), through Python's json
 /// module: numbers round-trip exactly both ways.
 inline py::object to_python(const nlohmann::json& j) {
@@ -170,10 +175,12 @@ inline nlohmann::json from_python(const py::handle& obj) {
 
 /// A Python callable (or None) that C++ code calls, from any thread, with the GIL taken, one
 /// call at a time, with the arguments a `make_args` lambda builds as a py::tuple (it runs with
-/// the GIL, so it may make Python objects). A call that returns False, raises, or finds a pending
-/// KeyboardInterrupt (checked at every call, also without a callable) throws CallbackStop into the
-/// C++ code, which unwinds; the binding, back with the GIL, calls finish() to re-raise what the
-/// callable raised. The C++ code must have released the GIL (py::gil_scoped_release).
+/// the GIL, so it may make Python objects). A call that returns False, raises, or finds a
+/// pending KeyboardInterrupt (checked at every call, also without a callable) asks the
+/// computation to stop: operator() returns false (for C++ code that can stop by itself), and
+/// stop_unless_going() throws CallbackStop (for code that stops by unwinding). The binding,
+/// back with the GIL, calls finish() to re-raise what the callable raised. The C++ code must
+/// have released the GIL (py::gil_scoped_release).
 class Callback {
  public:
   explicit Callback(py::object f) : f_(std::move(f)) {}
@@ -187,12 +194,12 @@ class Callback {
     }
   }
 
-  /// Calls the callable with the arguments make_args() returns.
+  /// Calls the callable with the arguments make_args() returns; false: stop.
   template <class MakeArgs>
-  void operator()(MakeArgs&& make_args) {
+  bool operator()(MakeArgs&& make_args) {
     const std::lock_guard<std::mutex> lock(mutex_);
     if (stopped_)
-      throw CallbackStop();
+      return false;
     py::gil_scoped_acquire gil;
     try {
       if (PyErr_CheckSignals() != 0)
@@ -206,7 +213,13 @@ class Callback {
       error_.emplace(std::move(e));
       stopped_ = true;
     }
-    if (stopped_)
+    return !stopped_;
+  }
+
+  /// The same, throwing CallbackStop to stop.
+  template <class MakeArgs>
+  void stop_unless_going(MakeArgs&& make_args) {
+    if (!(*this)(std::forward<MakeArgs>(make_args)))
       throw CallbackStop();
   }
 

@@ -58,6 +58,10 @@ struct GenerateOptions {
   /// Called after each shard is written: (shards done in this run, shards this run has,
   /// message). May be empty.
   std::function<void(int, int, const std::string&)> progress;
+  /// Asked after each shard is written (and progress called): false stops the run there, with
+  /// the shards written so far kept (a later run resumes) and GenerateResult::complete false.
+  /// May be empty (the run goes on to the end).
+  std::function<bool()> keep_going;
 };
 
 struct GenerateResult {
