@@ -35,6 +35,7 @@ done
 colcon --log-base "$scratch/log" build --build-base "$scratch/build" --install-base "$scratch/install" \
   --packages-skip ropes_core ropes_nn --cmake-args -DCMAKE_BUILD_TYPE=Release \
   "-DCMAKE_CXX_FLAGS_RELEASE=-O1 -DNDEBUG" -DROPES_WITH_DDS=OFF -DROPES_BUILD_BENCH=OFF \
+  -DROPES_PYTHON=OFF \
   -DBUILD_TESTING=OFF \
   --no-warn-unused-cli
 grep -q "ROPES_WITH_DDS:STRING=OFF" "$scratch/build/ropes_msgs/CMakeCache.txt"

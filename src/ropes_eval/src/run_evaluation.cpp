@@ -1,6 +1,7 @@
 #include "ropes_eval/run_evaluation.hpp"
 
 #include <ropes_core/dataset.hpp>
+#include <ropes_core/file_io.hpp>
 #include <ropes_core/json_text.hpp>
 #include <ropes_core/npy.hpp>
 #include <ropes_core/package_share.hpp>
@@ -520,6 +521,36 @@ void check_protocol(const RunEvaluationOptions& options) {
   require("calibration_samples", options.calibration_samples, kSamplesRange);
   require("test_samples", options.test_samples, kSamplesRange);
   require("probe_steps", options.probe_steps, kProbeStepsRange);
+}
+
+EvaluationFiles evaluation_files(const fs::path& results) {
+  if (results.filename() == "calibration.json") {
+    throw std::invalid_argument(results.string() +
+                                ": the calibration is written beside the results as "
+                                "calibration.json; name the results file otherwise");
+  }
+  EvaluationFiles f;
+  f.results = results;
+  f.markdown = results;
+  f.markdown.replace_extension(".md");
+  if (f.markdown == results)  // results named something.md: keep both
+    f.markdown += ".md";
+  f.calibration = results.parent_path() / "calibration.json";
+  return f;
+}
+
+EvaluationFiles write_evaluation(const RunEvaluation& ev, const fs::path& results) {
+  const EvaluationFiles f = evaluation_files(results);
+  if (results.has_parent_path())
+    fs::create_directories(results.parent_path());
+  const auto write_text = [](const fs::path& path, const std::string& text) {
+    core::write_file_atomically(path, reinterpret_cast<const std::uint8_t*>(text.data()),
+                                text.size());
+  };
+  write_text(f.results, ev.to_json().dump(2) + "\n");
+  write_text(f.markdown, ev.markdown());
+  ev.calibration.write(f.calibration);
+  return f;
 }
 
 RunEvaluation evaluate_run(const fs::path& run_dir, const fs::path& data_dir,

@@ -192,18 +192,9 @@ int run(int argc, char** argv) {
                      ": the calibration is written beside the results as calibration.json; "
                      "name the results file otherwise");
   const ropes::eval::RunEvaluation ev = ropes::eval::evaluate_run(run_dir, data, options);
-  if (results.has_parent_path())
-    fs::create_directories(results.parent_path());
-  write_text(results, ev.to_json().dump(2) + "\n");
-  fs::path markdown = results;
-  markdown.replace_extension(".md");
-  if (markdown == results)  // --out something.md: keep both
-    markdown += ".md";
-  write_text(markdown, ev.markdown());
-  const fs::path calibration = results.parent_path() / "calibration.json";
-  ev.calibration.write(calibration);
-  std::cout << ev.table() << "results: " << results.string() << " and " << markdown.string()
-            << "\ncalibration: " << calibration.string() << "\n";
+  const ropes::eval::EvaluationFiles files = ropes::eval::write_evaluation(ev, results);
+  std::cout << ev.table() << "results: " << files.results.string() << " and "
+            << files.markdown.string() << "\ncalibration: " << files.calibration.string() << "\n";
   return 0;
 }
 

@@ -180,6 +180,20 @@ RunEvaluation evaluate_run(const std::filesystem::path& run_dir,
                            const std::filesystem::path& data_dir,
                            const RunEvaluationOptions& options = {});
 
+/// The files of an evaluation written as ropes-eval --data writes them: `results`
+/// (results.json), the markdown beside it (the same name with .md; `results` + ".md" when
+/// it already ends in .md) and calibration.json in the same directory.
+struct EvaluationFiles {
+  std::filesystem::path results, markdown, calibration;
+};
+/// The three paths for `results`. Throws std::invalid_argument, naming it, when `results`
+/// is itself named calibration.json (the calibration would overwrite it).
+EvaluationFiles evaluation_files(const std::filesystem::path& results);
+/// Writes `ev` into evaluation_files(results): to_json() with indent 2, markdown() and the
+/// calibration, each atomically, after creating the directory. Throws as evaluation_files,
+/// core::FileFormatError naming a file that cannot be written.
+EvaluationFiles write_evaluation(const RunEvaluation& ev, const std::filesystem::path& results);
+
 /// The installed paper_results.json.
 std::filesystem::path installed_paper_results();
 
