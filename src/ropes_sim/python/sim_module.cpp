@@ -195,5 +195,37 @@ PYBIND11_MODULE(_sim, m) {
         sim::write_extremes_preview(c, seed, png, scale);
       },
       py::arg("config"), py::arg("seed"), py::arg("png"), py::arg("scale"));
+  m.def(
+      "framing_reach",
+      [](const sim::DatasetConfig& c, std::uint64_t seed) {
+        std::vector<sim::FramingReach> reach;
+        {
+          py::gil_scoped_release release;
+          reach = sim::framing_reach(c, seed);
+        }
+        py::list out;
+        for (const sim::FramingReach& f : reach) {
+          py::dict d;
+          d["camera"] = f.camera;
+          d["link"] = f.link;
+          d["anchor"] = f.anchor;
+          d["regime"] = f.regime;
+          d["angles"] = f.angles;
+          d["x"] = f.x;
+          d["y"] = f.y;
+          d["reach"] = f.reach;
+          d["beyond_pixels"] = f.beyond_pixels;
+          out.append(d);
+        }
+        return out;
+      },
+      py::arg("config"), py::arg("seed"));
+  m.def(
+      "check_framing",
+      [](const sim::DatasetConfig& c, std::uint64_t seed) {
+        py::gil_scoped_release release;
+        sim::check_framing(c, seed);
+      },
+      py::arg("config"), py::arg("seed"));
   m.def("tune_malloc_for_rendering", &sim::tune_malloc_for_rendering);
 }

@@ -2,9 +2,11 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <fstream>
 #include <set>
 #include <system_error>
+#include <vector>
 
 #include "json_config.hpp"
 #include "ropes_core/file_io.hpp"
@@ -92,6 +94,35 @@ Camera camera(const Json& v, const std::string& file, const std::string& field) 
   return c;
 }
 
+// a rig object: {name, cameras: [...]} and the other `allowed` fields
+CameraRig rig_of(const Json& rig, const std::string& file, const std::string& field,
+                 const std::set<std::string>& allowed) {
+  only_fields(rig, allowed, file, field.empty() ? "" : field + " ");
+  const std::string prefix = field.empty() ? "" : field + ".";
+  CameraRig out;
+  out.name =
+      text(required(rig, "name", file, field.empty() ? "" : field + " "), file, prefix + "name");
+  const Json& cameras = required(rig, "cameras", file, field.empty() ? "" : field + " ");
+  if (!cameras.is_array() || cameras.empty())
+    fail(file, prefix + "cameras is " + core::describe(cameras) + "; expected a non-empty array");
+  for (std::size_t i = 0; i < cameras.size(); ++i)
+    out.cameras.push_back(camera(cameras[i], file, prefix + "cameras[" + std::to_string(i) + "]"));
+  return out;
+}
+
+std::string installed_rig_names() {
+  std::vector<std::string> names;
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(installed_rigs_dir(), ec))
+    if (e.path().extension() == ".json")
+      names.push_back(e.path().stem().string());
+  std::sort(names.begin(), names.end());
+  std::string out;
+  for (const std::string& n : names)
+    out += (out.empty() ? "" : ", ") + n;
+  return out.empty() ? "none" : out;
+}
+
 std::filesystem::path relative_to(const std::filesystem::path& file, const std::string& value) {
   const std::filesystem::path p(value);
   return p.is_absolute() ? p : file.parent_path() / p;
@@ -134,25 +165,18 @@ DatasetConfig DatasetConfig::load(const std::filesystem::path& path) {
 
   const Json& rig = required(config, "rig", file, "");
   if (rig.is_string()) {
-    const std::string name = rig.get<std::string>();
-    if (name == "single_camera") {
-      c.rig = CameraRig::single_camera();
-    } else if (name == "two_cameras") {
-      c.rig = CameraRig::two_cameras();
-    } else {
-      fail(file,
-           "rig is \"" + name + "\"; expected \"single_camera\", \"two_cameras\" or a rig object");
-    }
+    const std::string value = rig.get<std::string>();
+    const std::filesystem::path rig_file = find_rig(value, path);
+    if (rig_file.empty())
+      fail(file, "rig is \"" + value.substr(0, 128) +
+                     "\"; expected the name of an installed rig (" + installed_rig_names() +
+                     " in " + installed_rigs_dir().string() +
+                     "), the path of a rig file relative to this config, or a rig object");
+    c.rig = load_rig(rig_file);
   } else if (rig.is_object()) {
-    only_fields(rig, {"name", "cameras"}, file, "rig ");
-    c.rig.name = text(required(rig, "name", file, "rig "), file, "rig.name");
-    const Json& cameras = required(rig, "cameras", file, "rig ");
-    if (!cameras.is_array() || cameras.empty())
-      fail(file, "rig.cameras is " + core::describe(cameras) + "; expected a non-empty array");
-    for (std::size_t i = 0; i < cameras.size(); ++i)
-      c.rig.cameras.push_back(camera(cameras[i], file, "rig.cameras[" + std::to_string(i) + "]"));
+    c.rig = rig_of(rig, file, "rig", {"name", "cameras"});
   } else {
-    fail(file, "rig is " + core::describe(rig) + "; expected a rig name or object");
+    fail(file, "rig is " + core::describe(rig) + "; expected a rig name, file or object");
   }
   const Json& image = required(config, "image", file, "");
   if (!image.is_object())
@@ -198,6 +222,33 @@ std::string DatasetConfig::to_json() const {
                {"anchors", anchors},
                {"anchors_per_shard", anchors_per_shard}};
   return j.dump();
+}
+
+CameraRig load_rig(const std::filesystem::path& path) {
+  const std::string file = path.string();
+  const Json rig = detail::read_config_object(path, "rig");
+  CameraRig out = rig_of(rig, file, "", {"name", "source", "notes", "cameras"});
+  if (out.cameras.empty())
+    fail(file, "cameras is empty; expected at least one camera");
+  return out;
+}
+
+std::filesystem::path installed_rigs_dir() {
+  return core::find_package_share("ropes_sim", "rigs", ROPES_SIM_INSTALL_SHARE_DIR) / "rigs";
+}
+
+std::filesystem::path find_rig(const std::string& name_or_path,
+                               const std::filesystem::path& config_file) {
+  const bool is_path = name_or_path.find('/') != std::string::npos ||
+                       std::filesystem::path(name_or_path).extension() == ".json";
+  if (is_path) {
+    const std::filesystem::path p = relative_to(config_file, name_or_path);
+    return core::is_regular_file(p) ? p : std::filesystem::path();
+  }
+  if (!core::is_plain_name(name_or_path))
+    return {};
+  const std::filesystem::path p = installed_rigs_dir() / (name_or_path + ".json");
+  return core::is_regular_file(p) ? p : std::filesystem::path();
 }
 
 std::filesystem::path installed_dataset_configs_dir() {

@@ -5,11 +5,13 @@
 #include <opencv2/imgproc.hpp>
 
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <cstdio>
 #include <cstring>
 #include <exception>
 #include <fstream>
+#include <limits>
 #include <mutex>
 #include <thread>
 
@@ -333,6 +335,83 @@ void check_sizes(const Setup& s, const DatasetConfig& config) {
 
 }  // namespace
 
+std::vector<FramingReach> framing_reach(const DatasetConfig& config, std::uint64_t seed) {
+  const Setup s(config);
+  Kinematics kinematics(s.model);
+  Eigen::Isometry3d X_WB = Eigen::Isometry3d::Identity();
+  X_WB.translation() = SceneOptions().robot_base;  // where generate_dataset's Scene puts it
+  std::vector<Eigen::Matrix4d> P;
+  std::vector<FramingReach> out(static_cast<std::size_t>(s.cameras));
+  for (int c = 0; c < s.cameras; ++c) {
+    const Camera& cam = config.rig.cameras[static_cast<std::size_t>(c)];
+    P.push_back(cam.projection(s.width, s.height) * cam.X_CW().matrix());
+    out[static_cast<std::size_t>(c)].camera = cam.name;
+    out[static_cast<std::size_t>(c)].reach = -1;
+  }
+  for (std::int64_t a = 0; a < config.anchors; ++a) {
+    const auto samples = s.sampler.sample_anchor(seed, static_cast<std::uint64_t>(a));
+    for (int r = 0; r < s.regimes; ++r) {
+      const auto& q = samples[static_cast<std::size_t>(r)];
+      kinematics.set_positions(s.coordinates(q));
+      const auto X_BL = kinematics.link_poses();
+      for (std::size_t l = 0; l < X_BL.size(); ++l) {
+        const Eigen::Vector4d p = (X_WB * X_BL[l].translation()).homogeneous();
+        for (int c = 0; c < s.cameras; ++c) {
+          const Eigen::Vector4d clip = P[static_cast<std::size_t>(c)] * p;
+          const bool behind = !(clip.w() > 0);
+          const double x = behind ? std::nan("") : clip.x() / clip.w();
+          const double y = behind ? std::nan("") : clip.y() / clip.w();
+          const double reach =
+              behind ? std::numeric_limits<double>::infinity() : std::max(std::abs(x), std::abs(y));
+          FramingReach& f = out[static_cast<std::size_t>(c)];
+          if (reach > f.reach) {
+            f.reach = reach;
+            f.beyond_pixels = behind ? std::numeric_limits<double>::infinity()
+                                     : std::max((std::abs(x) - 1) * s.width / 2,
+                                                (std::abs(y) - 1) * s.height / 2);
+            f.x = x;
+            f.y = y;
+            f.link = s.model.links()[l].name;
+            f.anchor = a;
+            f.regime = s.sampler.regime_names()[static_cast<std::size_t>(r)];
+            f.angles = q;
+          }
+        }
+      }
+    }
+  }
+  return out;
+}
+
+void check_framing(const DatasetConfig& config, std::uint64_t seed) {
+  const InterventionSampler sampler = InterventionSampler::load(config.distribution);
+  for (const FramingReach& f : framing_reach(config, seed)) {
+    if (f.beyond_pixels <= kFramingTolerancePixels)
+      continue;
+    std::string angles;
+    for (std::size_t j = 0; j < f.angles.size(); ++j) {
+      char v[32];
+      std::snprintf(v, sizeof v, " %.3f", f.angles[j]);
+      angles += (j ? ", " : "") + sampler.joint_names()[j] + v;
+    }
+    char where[128];
+    if (std::isfinite(f.reach))
+      std::snprintf(where, sizeof where,
+                    "lands at (%.3f, %.3f) in normalised image coordinates, %.1f px outside "
+                    "the image",
+                    f.x, f.y, f.beyond_pixels);
+    else
+      std::snprintf(where, sizeof where, "is behind the camera");
+    throw ConfigError(config.file.string() + ": rig '" + config.rig.name + "' camera '" + f.camera +
+                      "' loses link '" + f.link + "' from view: at anchor " +
+                      std::to_string(f.anchor) + ", regime " + f.regime + " (" + angles +
+                      ", seed " + std::to_string(seed) + ") its origin " + where +
+                      "; move the camera back (distance), "
+                      "widen fov_y_deg, aim target at the middle of the arm's sweep or narrow "
+                      "the distribution (ropes-generate --preview-extremes shows the extremes)");
+  }
+}
+
 GenerateResult generate_dataset(const DatasetConfig& config, const GenerateOptions& options) {
   if (options.threads < 1 || options.threads > 256)
     throw std::invalid_argument("generate_dataset: threads is " + std::to_string(options.threads) +
@@ -352,6 +431,7 @@ GenerateResult generate_dataset(const DatasetConfig& config, const GenerateOptio
     check_cameras_see_robot(s, config, options.seed, &probe);
     gl = probe.renderer.gl_description();
   }
+  check_framing(config, options.seed);  // a camera that sees nothing is the clearer message
   const std::string metadata = metadata_of(s, config, options.seed, gl);
   const std::string id = core::sha256_hex(metadata.data(), metadata.size());
   const auto columns = s.columns();

@@ -1,6 +1,7 @@
 #pragma once
 // What the dataset generator and RigRenderer share: a config's robot and distribution, and
 // the map from the distribution's joints to the model's coordinates (private to ropes_sim).
+#include <algorithm>
 #include <string>
 #include <vector>
 
@@ -22,6 +23,10 @@ struct Setup {
       : model(RobotModel::load(config.robot)),
         sampler(InterventionSampler::load(config.distribution)) {
     const auto& movable = model.movable_joints();
+    std::string movable_names;
+    for (int m : movable)
+      movable_names +=
+          (movable_names.empty() ? "" : ", ") + model.joints()[static_cast<std::size_t>(m)].name;
     for (const std::string& name : sampler.joint_names()) {
       int found = -1;
       for (std::size_t c = 0; c < movable.size(); ++c)
@@ -30,8 +35,21 @@ struct Setup {
       if (found < 0)
         throw ConfigError(config.distribution.string() + ": joint '" + name +
                           "' is not a movable joint of robot '" + model.name() + "' (" +
-                          config.robot.string() + ")");
+                          config.robot.string() + "), whose movable joints are " +
+                          (movable_names.empty() ? "none" : movable_names));
       coordinate_of_joint.push_back(found);
+    }
+    // every movable joint's angle is decided by the distribution: one it does not name would
+    // sit at 0 in every image, unnoticed
+    for (int m : movable) {
+      const std::string& name = model.joints()[static_cast<std::size_t>(m)].name;
+      const auto& named = sampler.joint_names();
+      if (std::find(named.begin(), named.end(), name) == named.end())
+        throw ConfigError(config.robot.string() + ": movable joint '" + name + "' of robot '" +
+                          model.name() + "' is not in the distribution " +
+                          config.distribution.string() +
+                          "; name it in \"joints\" and give it a value in \"held\" (or a "
+                          "distribution), so that every joint's angle is decided");
     }
     regimes = static_cast<int>(sampler.regime_names().size());
     cameras = static_cast<int>(config.rig.cameras.size());

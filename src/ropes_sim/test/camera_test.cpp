@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <iostream>
 
+#include "ropes_sim/dataset_config.hpp"
 #include "ropes_sim/intervention_sampler.hpp"
 #include "ropes_sim/kinematics.hpp"
 
@@ -107,6 +108,29 @@ TEST(Camera, RigsAreThePapersCameraSetups) {
     for (const Camera& c : rig->cameras) {
       EXPECT_EQ(c.distance, 1.4);  // Panda-Gym's
       EXPECT_EQ(c.pitch_deg, -30.0);
+    }
+  }
+}
+
+// The installed rig files (what the Panda's dataset configs name) are the built-in rigs,
+// to the bit: a dataset's id does not change with where its rig is written.
+TEST(Camera, InstalledRigFilesAreTheBuiltInRigs) {
+  const std::filesystem::path dir =
+      std::filesystem::path(ROPES_SIM_DISTRIBUTIONS_DIR) / ".." / "rigs";
+  for (const CameraRig& built_in : {CameraRig::single_camera(), CameraRig::two_cameras()}) {
+    const CameraRig file = load_rig(dir / (built_in.name + ".json"));
+    EXPECT_EQ(file.name, built_in.name);
+    ASSERT_EQ(file.cameras.size(), built_in.cameras.size());
+    for (std::size_t i = 0; i < file.cameras.size(); ++i) {
+      const Camera &a = file.cameras[i], &b = built_in.cameras[i];
+      EXPECT_EQ(a.name, b.name);
+      EXPECT_EQ(a.target, b.target) << a.name;
+      EXPECT_EQ(a.distance, b.distance) << a.name;
+      EXPECT_EQ(a.yaw_deg, b.yaw_deg) << a.name;
+      EXPECT_EQ(a.pitch_deg, b.pitch_deg) << a.name;
+      EXPECT_EQ(a.fov_y_deg, b.fov_y_deg) << a.name;
+      EXPECT_EQ(a.near, b.near) << a.name;
+      EXPECT_EQ(a.far, b.far) << a.name;
     }
   }
 }

@@ -20,6 +20,7 @@ using namespace ropes::sim::tools;
 const char* const kUsage = R"(usage: ropes-generate --config C --out DIR --seed S [options]
        ropes-generate --config C --preview PNG [--seed S] [--anchor A]
        ropes-generate --config C --preview-extremes PNG [--seed S] [--anchors N]
+       ropes-generate --config C --check-framing [--seed S] [--anchors N]
 
 Renders the dataset of config C (a file, or the name of an installed config such as 1c or
 2c) into DIR: manifest.json + shards/*.npy. Identical bytes for any --threads and --shard;
@@ -35,11 +36,15 @@ options:
   --anchor A             the anchor of --preview (default 0)
   --preview-extremes PNG write, per camera, the samples of all anchors whose links reach
                          furthest left, right, up and down: the rig's framing check
+  --check-framing        print, per camera, how far the link origins reach over every
+                         sample (1 is the image's edge) and fail, naming the link and the
+                         pose, when one leaves the image (generation checks it too)
   --scale S              --preview tile scale, an integer 1..16 (default 2)
 )";
 
 int run(int argc, char** argv) {
   std::string config_arg, out, preview, extremes;
+  bool framing = false;
   std::uint64_t seed = 0, anchor = 0;
   bool have_seed = false;
   std::int64_t anchors = -1, per_shard = -1;
@@ -84,6 +89,7 @@ int run(int argc, char** argv) {
               })
       .option("--preview", [&](const std::string& v) { preview = v; })
       .option("--preview-extremes", [&](const std::string& v) { extremes = v; })
+      .flag("--check-framing", [&] { framing = true; })
       .option("--anchor",
               [&](const std::string& v) {
                 anchor = parse_number<std::uint64_t>("--anchor", v, 0, UINT64_MAX);
@@ -100,6 +106,27 @@ int run(int argc, char** argv) {
   if (per_shard > 0)
     config.anchors_per_shard = per_shard;
 
+  if (framing) {
+    if (!out.empty() || options.threads != 1 || options.shard_count != 1 || !preview.empty() ||
+        !extremes.empty())
+      throw UsageError(
+          "--check-framing writes nothing: --out, --threads, --shard, --preview "
+          "and --preview-extremes do not apply");
+    for (const ropes::sim::FramingReach& f : ropes::sim::framing_reach(config, seed)) {
+      char line[512];
+      std::snprintf(
+          line, sizeof line,
+          "camera '%s': furthest link origin %.3f of the way to the edge ('%s', anchor %lld, %s)",
+          f.camera.c_str(), f.reach, f.link.c_str(), static_cast<long long>(f.anchor),
+          f.regime.c_str());
+      std::cout << "ropes-generate: " << line << "\n";
+    }
+    ropes::sim::check_framing(config, seed);
+    std::cout << "ropes-generate: every link origin stays in view over " << config.anchors
+              << " anchors (seed " << seed << "; within " << ropes::sim::kFramingTolerancePixels
+              << " px of the edge)\n";
+    return 0;
+  }
   if (!extremes.empty()) {
     if (!out.empty() || options.threads != 1 || options.shard_count != 1 || !preview.empty())
       throw UsageError(

@@ -5,10 +5,13 @@
 ///   name               the dataset's name
 ///   distribution       path of an InterventionSampler config (relative to this file)
 ///   robot              path of the URDF (relative to this file)
-///   rig                "single_camera", "two_cameras" (CameraRig's built-in rigs), or an
-///                      object {name, cameras: [{name, target [x,y,z], distance, yaw_deg,
+///   rig                the name of an installed rig file (share/ropes_sim/rigs:
+///                      "single_camera", "two_cameras"), the path of a rig file (relative to
+///                      this file; a value with a '/' or ending in .json), or a rig object
+///                      {name, cameras: [{name, target [x,y,z], distance, yaw_deg,
 ///                      pitch_deg, fov_y_deg, near, far}]}; omitted camera fields take
-///                      Camera's defaults
+///                      Camera's defaults. A rig file holds the same object (and optional
+///                      "source" and "notes"). The image size is the config's.
 ///   image              {width, height}: pixels, each in [8, 4096]
 ///   anchors            anchors in the dataset, >= 1
 ///   anchors_per_shard  anchors per shard file, >= 1
@@ -47,6 +50,20 @@ struct DatasetConfig {
   std::string to_json() const;
   std::int64_t shard_count() const { return (anchors + anchors_per_shard - 1) / anchors_per_shard; }
 };
+
+/// Reads a rig file (see the file comment); throws ConfigError naming the file, the field,
+/// the value and what was expected. The rig's width and height are CameraRig's defaults: a
+/// dataset config sets them.
+CameraRig load_rig(const std::filesystem::path& path);
+
+/// The installed rigs' directory, share/ropes_sim/rigs (found as the dataset configs are).
+std::filesystem::path installed_rigs_dir();
+
+/// The rig file `name_or_path` names in the dataset config `config_file`: a path (with a '/'
+/// or ending in .json) relative to the config's directory, else the installed rig of that
+/// name; an empty path when there is no such file.
+std::filesystem::path find_rig(const std::string& name_or_path,
+                               const std::filesystem::path& config_file);
 
 /// The installed dataset configs' directory, share/ropes_sim/datasets, found as
 /// core::find_package_share finds it (beside the executable, a sourced install space, or

@@ -72,12 +72,46 @@ struct GenerateResult {
   std::vector<std::string> warnings;  // the scene's (missing materials, ...)
 };
 
+/// How far the link origins of a rig's robot reach in one camera, over every sample of a
+/// dataset: the furthest one from the image's centre, in normalised image coordinates (x
+/// right, y up; the image is [-1, 1] x [-1, 1]).
+struct FramingReach {
+  std::string camera, link, regime;
+  std::int64_t anchor = 0;
+  std::vector<double> angles;  ///< the sample's angles, the distribution's joints in order
+  double x = 0, y = 0;         ///< where the link origin lands (NaN behind the camera)
+  double reach = 0;            ///< max(|x|, |y|): 1 is the image's edge; infinite behind
+  /// how far past the image's edge it lands, in pixels (max over x and y; <= 0: inside)
+  double beyond_pixels = 0;
+};
+
+/// How far past the image's edge a link origin may land before check_framing refuses the
+/// rig: one pixel. A point there is not in the image, but the link's shape around it is: the
+/// Panda's 2C rig puts a finger's origin 0.13 px past the edge (reach 1.002) in one sample of
+/// small-2c at seed 1, and refusing that would refuse the paper's camera setup for a pixel's
+/// fraction.
+inline constexpr double kFramingTolerancePixels = 1.0;
+
+/// The framing check of a config's rig (the numbers behind write_extremes_preview): for each
+/// camera, the link origin that reaches furthest over every sample (all regimes) of the
+/// config's anchors under `seed`. Cost: one forward kinematics per sample (about 5 us).
+std::vector<FramingReach> framing_reach(const DatasetConfig& config, std::uint64_t seed);
+
+/// Throws ConfigError when a link origin lands more than kFramingTolerancePixels past a
+/// camera's image's edge (or behind the camera) in any sample,
+/// naming the config, the rig, the camera, the link, the anchor, the regime, the angles and
+/// where it lands; generate_dataset calls it before the directory is touched. A link's shape
+/// may still cross the edge where its origin does not: write_extremes_preview shows them.
+void check_framing(const DatasetConfig& config, std::uint64_t seed);
+
 /// Generates (or resumes) the dataset in options.out. Throws std::invalid_argument for bad
 /// options (threads < 1, shard index outside [0, count)); std::runtime_error naming the
 /// directory and the first field that differs when it holds a different dataset (another
 /// config, seed or GL), or is not empty and holds no dataset; ConfigError for a camera that
 /// sees (almost) none of the robot in anchor 0's observational configuration (naming the
-/// camera and its parameters) or for shards too many or too large; ModelError/MeshError/
+/// camera and its parameters), for a link that leaves a camera's image (check_framing), for
+/// a distribution that names a joint the URDF lacks or lacks a movable joint of the URDF, or
+/// for shards too many or too large; ModelError/MeshError/
 /// RenderError from loading. All of these are found before the directory is touched. Cost: about a
 /// millisecond per 128x128 image of the primitive Panda per thread.
 GenerateResult generate_dataset(const DatasetConfig& config, const GenerateOptions& options);

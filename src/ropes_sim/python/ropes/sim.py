@@ -132,6 +132,19 @@ def generate_dataset(config, out, seed=0, threads=1, shard_index=0, shard_count=
     return GenerateResult(**r)
 
 
+def check_framing(config, seed=0):
+    """The framing check of a config's rig: per camera, the link origin that reaches furthest
+    from the image's centre over every sample of the config's anchors, as a list of dicts
+    (camera, link, anchor, regime, angles, x, y in normalised image coordinates, reach: 1 is
+    the image's edge, beyond_pixels: how far past it). Raises ropes.ConfigError naming the
+    camera, the link and the pose when one lands more than a pixel past the edge
+    (generate_dataset refuses such a config too)."""
+    config = _config(config)
+    reach = _sim.framing_reach(config, seed)
+    _sim.check_framing(config, seed)
+    return reach
+
+
 def preview_extremes(config, png, seed=0, scale=2):
     """The framing check of a config's rig (ropes-generate --preview-extremes): for each
     camera, the samples whose link origins reach furthest left, right, up and down, as a PNG

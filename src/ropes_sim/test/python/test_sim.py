@@ -159,3 +159,71 @@ def test_bad_input_is_one_clear_error(tmp_path, tiny):
     with pytest.raises(RuntimeError, match="full"):
         sim.generate_dataset(tiny, tmp_path / "full")
     assert [p.name for p in (tmp_path / "full").iterdir()] == ["mine.txt"]
+
+
+def _config_with(tmp_path, tiny, name="changed", **changes):
+    """tiny-1c with its paths made absolute and `changes` applied, written to tmp_path."""
+    spec = json.loads(open(tiny.file).read())
+    base = os.path.dirname(tiny.file)
+    for key in ("distribution", "robot"):
+        spec[key] = os.path.normpath(os.path.join(base, spec[key]))
+    spec.pop("source", None)
+    spec.update(changes)
+    path = tmp_path / f"{name}.json"
+    path.write_text(json.dumps(spec))
+    return path
+
+
+def test_rig_files_and_the_framing_check_name_the_link_and_the_pose(tmp_path, tiny):
+    reach = sim.check_framing(tiny)
+    assert [r["camera"] for r in reach] == ["cam0"] and 0 < reach[0]["reach"] < 1
+    assert tiny.to_dict()["rig"]["name"] == "single_camera"  # the installed rig file
+    # a rig file beside the config, so close that the arm leaves the image
+    rig = {"name": "close", "cameras": [{"name": "near_cam", "target": [-0.6, 0.0, 0.62],
+                                         "distance": 0.6, "pitch_deg": -30.0,
+                                         "fov_y_deg": 40.0}]}
+    (tmp_path / "close_rig.json").write_text(json.dumps(rig))
+    close = _config_with(tmp_path, tiny, rig="close_rig.json")
+    assert sim.DatasetConfig.load(close).to_dict()["rig"]["cameras"][0]["name"] == "near_cam"
+    pattern = (r"rig 'close' camera 'near_cam' loses link '\w+' from view: at anchor \d+, "
+               r"regime [^ ]+ \(panda_joint1 -?\d\.\d{3}, .*panda_joint7 -?\d\.\d{3}, seed 0\) "
+               r"its origin lands at \(-?\d\.\d{3}, -?\d\.\d{3}\) in normalised image coordinates, "
+               r"\d+\.\d px outside the image")
+    with pytest.raises(ropes.ConfigError, match=pattern):
+        sim.check_framing(close)
+    with pytest.raises(ropes.ConfigError, match="loses link"):
+        sim.generate_dataset(close, tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+    with pytest.raises(ropes.ConfigError,
+                       match=r"rig is \"nowhere\"; expected the name of an installed rig "
+                             r"\(single_camera, two_cameras in "):
+        sim.DatasetConfig.load(_config_with(tmp_path, tiny, name="bad_rig", rig="nowhere"))
+    with pytest.raises(ropes.ConfigError, match="missing_rig.json"):
+        sim.DatasetConfig.load(_config_with(tmp_path, tiny, name="no_rig", rig="missing_rig.json"))
+
+
+def test_the_distribution_names_every_joint_of_the_urdf_and_no_other(tmp_path, tiny):
+    dist = json.loads(open(tiny.distribution).read())
+    extra = dict(dist, joints=dist["joints"] + ["panda_finger"],
+                 held=dict(dist["held"], panda_finger=0.0))
+    (tmp_path / "extra.json").write_text(json.dumps(extra))
+    config = _config_with(tmp_path, tiny, name="extra_config",
+                          distribution=str(tmp_path / "extra.json"))
+    with pytest.raises(ropes.ConfigError,
+                       match=r"joint 'panda_finger' is not a movable joint of robot "
+                             r"'ropes_panda' \(.*panda.urdf\), whose movable joints are "
+                             r"panda_joint1, panda_joint2, .*panda_joint7"):
+        sim.generate_dataset(config, tmp_path / "out")
+    held = dict(dist["held"])
+    del held["panda_joint7"]
+    fewer = dict(dist, joints=dist["joints"][:6], held=held)
+    (tmp_path / "fewer.json").write_text(json.dumps(fewer))
+    config = _config_with(tmp_path, tiny, name="fewer_config",
+                          distribution=str(tmp_path / "fewer.json"))
+    with pytest.raises(ropes.ConfigError,
+                       match=r"movable joint 'panda_joint7' of robot 'ropes_panda' is not in "
+                             r"the distribution .*fewer.json"):
+        sim.Rig(config)
+    with pytest.raises(ropes.ConfigError, match="panda_joint7"):
+        sim.generate_dataset(config, tmp_path / "out")
+    assert not (tmp_path / "out").exists()
