@@ -127,6 +127,9 @@ eval::SuiteOptions suite_options(const py::dict& s) {
       o.data = value.is_none() ? std::filesystem::path() : std::filesystem::path(rp::fspath(value));
     else if (key == "out")
       o.out = value.is_none() ? std::filesystem::path() : std::filesystem::path(rp::fspath(value));
+    else if (key == "dataset_config")
+      o.dataset_config =
+          value.is_none() ? std::filesystem::path() : std::filesystem::path(rp::fspath(value));
     else if (key == "cache")
       o.cache =
           value.is_none() ? std::filesystem::path() : std::filesystem::path(rp::fspath(value));

@@ -74,6 +74,8 @@ options:
   --suite LIST              the suites (see above)
   --data-cache DIR          where test sets are generated (default $ROPES_DATA_CACHE, else
                             $XDG_CACHE_HOME/ropes/test-data, else ~/.cache/ropes/test-data)
+  --dataset-config FILE     the training set's dataset config, when it is not installed
+                            (a robot of your own): the suites generate from it
   --test-seed S             the generated test sets' seed (default: the training set's + 1)
   --occlusion-sizes LIST    the occlusion squares' sides in pixels (default 16,32,64)
   --supervised LIST         the supervised baseline's labelled percentages of the training
@@ -120,6 +122,7 @@ int run(int argc, char** argv) {
       .option("--suite",
               [&](const std::string& v) { suite_args.suites = tools::parse_suites("--suite", v); })
       .option("--data-cache", [&](const std::string& v) { suite_args.cache = v; })
+      .option("--dataset-config", [&](const std::string& v) { suite_args.dataset_config = v; })
       .option("--test-seed",
               [&](const std::string& v) {
                 suite_args.test_seed = parse_number<std::uint64_t>("--test-seed", v);

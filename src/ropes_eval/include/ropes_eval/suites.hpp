@@ -29,6 +29,9 @@ struct SuiteOptions {
   std::filesystem::path out;
   /// where test sets are generated; empty: default_test_data_cache()
   std::filesystem::path cache;
+  /// the training set's dataset config file, when it is not installed (TestDataRequest::
+  /// train_config_file); ropes-run passes the one it generated the training set from
+  std::filesystem::path dataset_config;
   /// the test sets' seed; nullopt: the training set's + 1
   std::optional<std::uint64_t> test_seed;
   /// the occlusion suite's square sides in pixels (those larger than the image are left

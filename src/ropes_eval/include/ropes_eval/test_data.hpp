@@ -24,6 +24,10 @@ struct TestDataRequest {
   std::int64_t min_observational = 0;
   std::uint64_t seed = 0;  // the test set's seed (not the training set's)
   std::filesystem::path cache;
+  /// The training set's dataset config file when it is not installed (a robot of the user's
+  /// own): its name must be the training set's, and its test_sets may name files relative to
+  /// it. Empty: the installed config of the training set's name.
+  std::filesystem::path train_config_file;
   int threads = 1;
   std::function<void(const std::string&)> log;  // progress lines; may be empty
 };
@@ -35,13 +39,14 @@ struct TestData {
   std::int64_t shards_written = 0;    // by this call (0: the cache had it)
 };
 
-/// The dataset config a suite uses for a run trained on the installed config `train_config`:
-/// id -> the config itself; ood and causal -> the names its "test_sets" field gives
-/// (small-2c: small-2c_ood, small-2c_causal; sim::DatasetConfig::test_sets). Empty when the
-/// config names none for the suite (the 1C configs: the paper defines no OOD or causal test
-/// set for one camera) or is no installed config. Throws sim::ConfigError for an installed
-/// config that does not load.
-std::string suite_config_name(const std::string& train_config, const std::string& distribution);
+/// The dataset config a suite uses for a run trained on the config `train_config` (the
+/// installed one of that name, or `train_config_file` when given): id -> the config itself;
+/// ood and causal -> the names its "test_sets" field gives (small-2c: small-2c_ood,
+/// small-2c_causal; sim::DatasetConfig::test_sets). Empty when the config names none for the
+/// suite (the 1C configs: the paper defines no OOD or causal test set for one camera) or is
+/// no installed config. Throws sim::ConfigError for a config that does not load.
+std::string suite_config_name(const std::string& train_config, const std::string& distribution,
+                              const std::filesystem::path& train_config_file = {});
 
 /// The dataset config `name_or_path`: a file, or the installed ropes_sim config of that
 /// name. Throws std::invalid_argument naming it when it is neither.

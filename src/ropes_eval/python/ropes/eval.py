@@ -141,16 +141,19 @@ class Report:
         return os.path.join(self.report_dir, "report.html")
 
 
-def run_suites(run, suites=("id",), data=None, out=None, cache=None, test_seed=None,
+def run_suites(run, suites=("id",), data=None, out=None, cache=None, dataset_config=None,
+               test_seed=None,
                occlusion_sizes=(16, 32, 64), supervised=(0.01, 0.05, 0.10, 1.0),
                supervised_max_steps=0, threads=1, repeats=15, calibration_samples=1000,
                test_samples=500, seed=0, probe_steps=3000, log=None):
     """Evaluates the run on the suites (id, ood, causal, occlusion) as ropes-eval --suite
     does: each suite's test set generated into `cache` (default: $ROPES_DATA_CACHE, else the
     XDG cache) or found there, the supervised baselines, and the report in `out` (default
-    RUN-eval/report). `log(line)` gets the progress lines; returning False stops (the
-    generated test sets are kept)."""
-    options = dict(suites=list(suites), data=data, out=out, cache=cache, test_seed=test_seed,
+    RUN-eval/report). `dataset_config`: the training set's dataset config file when it is not
+    installed (a robot of your own). `log(line)` gets the progress lines; returning False
+    stops (the generated test sets are kept)."""
+    options = dict(suites=list(suites), data=data, out=out, cache=cache,
+                   dataset_config=dataset_config, test_seed=test_seed,
                    occlusion_sizes=list(occlusion_sizes), supervised=list(supervised),
                    supervised_max_steps=supervised_max_steps, threads=threads,
                    protocol=dict(repeats=repeats, calibration_samples=calibration_samples,

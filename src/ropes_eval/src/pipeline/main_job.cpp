@@ -66,8 +66,20 @@ MainJobResult run_main_job(const MainJobOptions& options,
   // the dataset config the experiment config names (1c-small: small-1c)
   const std::string dataset_config =
       options.dataset_config.empty() ? config.dataset_config : options.dataset_config;
-  // found before anything is written, so that a misspelt name leaves no state behind
-  const fs::path dataset_file = installed_dataset_config(dataset_config);
+  // found before anything is written, so that a misspelt name leaves no state behind; a
+  // path in an experiment config file is relative to that file (a robot of the user's own)
+  fs::path dataset_file;
+  const bool is_path = dataset_config.find('/') != std::string::npos ||
+                       fs::path(dataset_config).extension() == ".json";
+  if (options.dataset_config.empty() && is_path && core::is_regular_file(options.config) &&
+      fs::path(dataset_config).is_relative()) {
+    dataset_file = fs::path(options.config).parent_path() / dataset_config;
+    if (!core::is_regular_file(dataset_file))
+      throw std::invalid_argument(options.config + ": dataset.config is '" + dataset_config +
+                                  "': " + dataset_file.string() + " does not exist");
+  } else {
+    dataset_file = installed_dataset_config(dataset_config);
+  }
   MainJobResult r;
   r.dir = options.out.empty() ? fs::path("runs") / config.name : options.out;
   r.train_data = r.dir / "train-data";
@@ -186,6 +198,7 @@ MainJobResult run_main_job(const MainJobOptions& options,
     suites.out = r.report_dir;
     suites.cache = r.dir / "test-data";
     suites.data.clear();
+    suites.dataset_config = dataset_file;
     suites.test_seed.reset();
     suites.threads = options.threads;
     const auto at = Clock::now();

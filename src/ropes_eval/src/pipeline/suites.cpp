@@ -180,6 +180,7 @@ SuiteOutcome run_suites(const fs::path& run_dir, const SuiteOptions& args,
       request.min_observational = options.calibration_samples + options.test_samples;
       request.seed = test_seed;
       request.cache = args.cache.empty() ? default_test_data_cache() : args.cache;
+      request.train_config_file = args.dataset_config;
       request.threads = threads;
       request.log = log;
       try {

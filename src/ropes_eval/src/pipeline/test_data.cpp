@@ -66,16 +66,37 @@ fs::path installed_dataset_config(const std::string& name_or_path) {
   return p;
 }
 
-std::string suite_config_name(const std::string& train_config, const std::string& distribution) {
+std::string suite_config_name(const std::string& train_config, const std::string& distribution,
+                              const fs::path& train_config_file) {
   if (distribution == "id")
     return train_config;
-  const fs::path file = installed_config(train_config);
+  const fs::path file =
+      train_config_file.empty() ? installed_config(train_config) : train_config_file;
   if (file.empty())
     return "";
   const sim::DatasetConfig config = sim::DatasetConfig::load(file);
   const auto named = config.test_sets.find(distribution);
   return named == config.test_sets.end() ? "" : named->second;
 }
+
+namespace {
+
+// the config file of test set `name`: the training config's own file for its name, one
+// relative to it (a name with a '/' or ending in .json), else the installed one
+fs::path test_config_file(const std::string& name, const std::string& train_config,
+                          const fs::path& train_config_file) {
+  if (!train_config_file.empty()) {
+    if (name == train_config)
+      return train_config_file;
+    if (name.find('/') != std::string::npos || fs::path(name).extension() == ".json") {
+      const fs::path p = train_config_file.parent_path() / name;
+      return core::is_regular_file(p) ? p : fs::path();
+    }
+  }
+  return installed_config(name);
+}
+
+}  // namespace
 
 TestData ensure_test_data(const TestDataRequest& request) {
   const crl::RunDirectory run = crl::RunDirectory::open(request.run_dir);
@@ -90,13 +111,21 @@ TestData ensure_test_data(const TestDataRequest& request) {
   const nlohmann::json meta = read_json(manifest).value("metadata", nlohmann::json::object());
   const std::string train_config =
       meta.contains("config") && meta["config"].is_object() ? meta["config"].value("name", "") : "";
-  const std::string name = suite_config_name(train_config, request.distribution);
+  if (!request.train_config_file.empty()) {
+    const sim::DatasetConfig given = sim::DatasetConfig::load(request.train_config_file);
+    if (given.name != train_config)
+      throw std::invalid_argument(request.train_config_file.string() + " is dataset config '" +
+                                  given.name + "', but the run's training set (" +
+                                  manifest.string() + ") was made from '" + train_config + "'");
+  }
+  const std::string name =
+      suite_config_name(train_config, request.distribution, request.train_config_file);
   if (name.empty())
     throw std::invalid_argument(
         "no " + request.distribution + " test set is defined for '" + train_config +
-        "' (its installed config names none in test_sets; the paper defines OOD and causal "
+        "' (its config names none in test_sets; the paper defines OOD and causal "
         "test sets for two cameras)");
-  const fs::path file = installed_config(name);
+  const fs::path file = test_config_file(name, train_config, request.train_config_file);
   if (file.empty())
     throw std::invalid_argument(
         manifest.string() + ": " +
