@@ -12,16 +12,18 @@
 # Python interpreter cannot load ASan-instrumented modules without preloading the runtime).
 # ROPES_PYTHON_ENABLED tells the caller which it is.
 #
-# The interpreter is Python3_EXECUTABLE when given, else Debian's /usr/bin/python3 (the one
-# python3-numpy, python3-pytest and pybind11-dev are built for; a pyenv python3 first on PATH
-# lacks them), else the first python3 FindPython3 finds.
+# The interpreter is Debian's /usr/bin/python3 (the one python3-numpy, python3-pytest and
+# pybind11-dev are built for; a pyenv python3 first on PATH lacks them), else the first
+# python3 FindPython3 finds. Python3_EXECUTABLE picks another, but colcon's setup.bash puts
+# colcon's own Python version's site-packages on PYTHONPATH: the two must be the same version.
 #
 # ropes_add_python_module() builds the extension module ropes.<name> from SOURCES (linking
 # LIBRARIES and ropes_core/python.hpp's helpers) and installs it, with the PYTHON_FILES (the
 # package's pure-Python modules, each into ropes/), into lib/pythonX.Y/site-packages/ropes of
 # the package's install prefix: where colcon's setup.bash puts PYTHONPATH.
 #
-# ropes_add_pytest() runs pytest on DIRECTORY as one ctest test (label python, plus LABELS),
+# ropes_add_pytest() runs pytest on DIRECTORY as one ctest test (label python, plus LABELS;
+# not registered when the interpreter has no pytest),
 # with the install prefix's site-packages first on PYTHONPATH and the ENVIRONMENT variables
 # set (generator expressions allowed: the path of a tool to compare with), and writes pytest's JUnit XML
 # into the build directory, so that colcon test-result counts each Python test.
@@ -91,6 +93,20 @@ endfunction()
 function(ropes_add_pytest test_name)
   cmake_parse_arguments(_t "" "DIRECTORY;TIMEOUT" "LABELS;ENVIRONMENT" ${ARGN})
   if(NOT ROPES_PYTHON_ENABLED OR NOT BUILD_TESTING)
+    return()
+  endif()
+  if(NOT DEFINED ROPES_PYTEST_FOUND)
+    execute_process(COMMAND "${Python3_EXECUTABLE}" -c "import pytest"
+      RESULT_VARIABLE _ropes_pytest_rc OUTPUT_QUIET ERROR_QUIET)
+    if(_ropes_pytest_rc EQUAL 0)
+      set(ROPES_PYTEST_FOUND TRUE CACHE INTERNAL "pytest for the Python bindings' tests")
+    else()
+      set(ROPES_PYTEST_FOUND FALSE CACHE INTERNAL "pytest for the Python bindings' tests")
+    endif()
+  endif()
+  if(NOT ROPES_PYTEST_FOUND)
+    message(STATUS "${PROJECT_NAME}: no pytest for ${Python3_EXECUTABLE} (python3-pytest): "
+      "${test_name} is not registered")
     return()
   endif()
   if(NOT _t_TIMEOUT)

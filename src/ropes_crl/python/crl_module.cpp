@@ -6,6 +6,8 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <utility>
@@ -56,8 +58,17 @@ py::dict train(const crl::ExperimentConfig& config, const py::handle& data, cons
   return d;
 }
 
+// an Estimator is not thread-safe and estimate() releases the GIL: Python threads sharing
+// one take turns
+struct SharedEstimator {
+  explicit SharedEstimator(crl::Estimator e) : estimator(std::move(e)) {}
+  crl::Estimator estimator;
+  std::mutex mutex;
+};
+
 // images u8 [n, cameras, S, S] -> (latents f32 [n, J], angles f32 [n, J] or None), in batches
-py::tuple estimate(crl::Estimator& e, const py::handle& images_obj, std::int64_t batch) {
+py::tuple estimate(SharedEstimator& shared, const py::handle& images_obj, std::int64_t batch) {
+  crl::Estimator& e = shared.estimator;
   if (batch < 1)
     throw std::invalid_argument("batch is " + std::to_string(batch) + "; expected >= 1");
   const std::int64_t cams = e.cameras(), side = e.image_size();
@@ -67,10 +78,14 @@ py::tuple estimate(crl::Estimator& e, const py::handle& images_obj, std::int64_t
   const auto joints = static_cast<std::int64_t>(e.joints().size());
   const std::int64_t per = cams * side * side;
   std::vector<float> latents(static_cast<std::size_t>(n * joints));
-  std::vector<float> angles(e.calibrated() ? latents.size() : 0);
+  std::vector<float> angles;
+  bool calibrated = false;
   const std::uint8_t* pixels = images.data();
   {
-    py::gil_scoped_release release;
+    py::gil_scoped_release release;  // then the lock: a thread waiting for it holds no GIL
+    const std::lock_guard<std::mutex> lock(shared.mutex);
+    calibrated = e.calibrated();
+    angles.resize(calibrated ? latents.size() : 0);
     for (std::int64_t b = 0; b < n; b += batch) {
       const std::int64_t m = std::min(batch, n - b);
       nn::Buffer x(static_cast<std::size_t>(m * per));
@@ -79,14 +94,14 @@ py::tuple estimate(crl::Estimator& e, const py::handle& images_obj, std::int64_t
         x[i] = static_cast<float>(from[i]) / 255.0f;  // as ropes-eval reads a dataset's images
       const nn::Tensor l = e.latents(nn::Tensor(nn::Shape{m, cams, side, side}, std::move(x)));
       std::copy(l.data(), l.data() + m * joints, latents.begin() + b * joints);
-      if (e.calibrated()) {
+      if (calibrated) {
         const nn::Tensor a = e.angles_from_latents(l);
         std::copy(a.data(), a.data() + m * joints, angles.begin() + b * joints);
       }
     }
   }
   py::object a = py::none();
-  if (e.calibrated())
+  if (calibrated)
     a = rp::to_numpy(std::move(angles), {n, joints});
   return py::make_tuple(rp::to_numpy(std::move(latents), {n, joints}), a);
 }
@@ -110,21 +125,30 @@ PYBIND11_MODULE(_crl, m) {
   m.def("train", &train, py::arg("config"), py::arg("data"), py::arg("out"), py::arg("seed"),
         py::arg("threads"), py::arg("last_stage"), py::arg("progress"));
 
-  py::class_<crl::Estimator>(m, "Estimator")
+  py::class_<SharedEstimator>(m, "Estimator")
       .def_static(
-          "load", [](const py::handle& run) { return crl::Estimator::load(rp::fspath(run)); },
+          "load",
+          [](const py::handle& run) {
+            return std::make_unique<SharedEstimator>(crl::Estimator::load(rp::fspath(run)));
+          },
           py::arg("run"))
-      .def_property_readonly("joints", &crl::Estimator::joints)
-      .def_property_readonly("cameras", &crl::Estimator::cameras)
-      .def_property_readonly("image_size", &crl::Estimator::image_size)
-      .def_property_readonly("calibrated", &crl::Estimator::calibrated)
+      .def_property_readonly("joints",
+                             [](const SharedEstimator& s) { return s.estimator.joints(); })
+      .def_property_readonly("cameras",
+                             [](const SharedEstimator& s) { return s.estimator.cameras(); })
+      .def_property_readonly("image_size",
+                             [](const SharedEstimator& s) { return s.estimator.image_size(); })
+      .def_property_readonly("calibrated",
+                             [](const SharedEstimator& s) { return s.estimator.calibrated(); })
       .def("estimate", &estimate, py::arg("images"), py::arg("batch"))
       .def(
           "use_calibration",
-          [](crl::Estimator& e, const py::handle& run, const py::handle& file) {
+          [](SharedEstimator& s, const py::handle& run, const py::handle& file) {
             const crl::Calibration c = crl::Calibration::read(rp::fspath(file));
             c.check_fits(crl::RunDirectory::open(rp::fspath(run)));
-            e.set_calibration(c);
+            py::gil_scoped_release release;
+            const std::lock_guard<std::mutex> lock(s.mutex);
+            s.estimator.set_calibration(c);
           },
           py::arg("run"), py::arg("file"));
 

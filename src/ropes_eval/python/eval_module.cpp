@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -43,6 +44,19 @@ py::array_t<double> to_numpy(const Eigen::VectorXd& v) {
   return rp::to_numpy(std::vector<double>(v.data(), v.data() + v.size()), {v.size()});
 }
 
+// value.cast<T>(), a mismatch a ValueError naming the field, the value and the type expected
+template <class T>
+T field_as(const py::handle& value, const std::string& key, const char* expected) {
+  try {
+    if (py::isinstance<py::bool_>(value) && !std::is_same<T, bool>::value)
+      throw py::cast_error();
+    return value.cast<T>();
+  } catch (const py::cast_error&) {
+    throw std::invalid_argument(key + " is " + std::string(py::repr(value)) + "; expected " +
+                                expected);
+  }
+}
+
 eval::Correlation correlation_kind(const std::string& kind) {
   if (kind == "pearson")
     return eval::Correlation::kPearson;
@@ -56,19 +70,19 @@ eval::RunEvaluationOptions protocol(const py::dict& p) {
   for (const auto& [key_obj, value] : p) {
     const std::string key = py::str(key_obj);
     if (key == "repeats")
-      o.repeats = value.cast<std::int64_t>();
+      o.repeats = field_as<std::int64_t>(value, key, "an int");
     else if (key == "calibration_samples")
-      o.calibration_samples = value.cast<std::int64_t>();
+      o.calibration_samples = field_as<std::int64_t>(value, key, "an int");
     else if (key == "test_samples")
-      o.test_samples = value.cast<std::int64_t>();
+      o.test_samples = field_as<std::int64_t>(value, key, "an int");
     else if (key == "seed")
-      o.seed = value.cast<std::uint64_t>();
+      o.seed = field_as<std::uint64_t>(value, key, "an int >= 0");
     else if (key == "probe_steps")
-      o.probe_steps = value.cast<std::int64_t>();
+      o.probe_steps = field_as<std::int64_t>(value, key, "an int");
     else if (key == "occlusion")
-      o.occlusion = value.cast<std::int64_t>();
+      o.occlusion = field_as<std::int64_t>(value, key, "an int");
     else if (key == "occlusion_seed")
-      o.occlusion_seed = value.cast<std::uint64_t>();
+      o.occlusion_seed = field_as<std::uint64_t>(value, key, "an int >= 0");
     else
       throw std::invalid_argument("protocol: unknown field '" + key + "'");
   }
@@ -122,7 +136,7 @@ eval::SuiteOptions suite_options(const py::dict& s) {
   for (const auto& [key_obj, value] : s) {
     const std::string key = py::str(key_obj);
     if (key == "suites")
-      o.suites = value.cast<std::vector<std::string>>();
+      o.suites = field_as<std::vector<std::string>>(value, key, "a list of suite names");
     else if (key == "data")
       o.data = value.is_none() ? std::filesystem::path() : std::filesystem::path(rp::fspath(value));
     else if (key == "out")
@@ -134,18 +148,20 @@ eval::SuiteOptions suite_options(const py::dict& s) {
       o.cache =
           value.is_none() ? std::filesystem::path() : std::filesystem::path(rp::fspath(value));
     else if (key == "test_seed")
-      o.test_seed = value.is_none() ? std::nullopt
-                                    : std::optional<std::uint64_t>(value.cast<std::uint64_t>());
+      o.test_seed =
+          value.is_none()
+              ? std::nullopt
+              : std::optional<std::uint64_t>(field_as<std::uint64_t>(value, key, "an int >= 0"));
     else if (key == "occlusion_sizes")
-      o.occlusion_sizes = value.cast<std::vector<std::int64_t>>();
+      o.occlusion_sizes = field_as<std::vector<std::int64_t>>(value, key, "a list of ints");
     else if (key == "supervised")
-      o.supervised = value.cast<std::vector<double>>();
+      o.supervised = field_as<std::vector<double>>(value, key, "a list of fractions");
     else if (key == "supervised_max_steps")
-      o.supervised_max_steps = value.cast<std::int64_t>();
+      o.supervised_max_steps = field_as<std::int64_t>(value, key, "an int");
     else if (key == "threads")
-      o.threads = value.cast<int>();
+      o.threads = field_as<int>(value, key, "an int");
     else if (key == "protocol")
-      o.evaluation = protocol(value.cast<py::dict>());
+      o.evaluation = protocol(field_as<py::dict>(value, key, "a dict"));
     else
       throw std::invalid_argument("suites: unknown field '" + key + "'");
   }
@@ -188,13 +204,13 @@ py::dict main_job(const py::dict& fields, const py::object& log) {
     else if (key == "out")
       o.out = value.is_none() ? std::filesystem::path() : std::filesystem::path(rp::fspath(value));
     else if (key == "seed")
-      o.seed = value.cast<std::uint64_t>();
+      o.seed = field_as<std::uint64_t>(value, key, "an int >= 0");
     else if (key == "data_seed")
-      o.data_seed = value.cast<std::uint64_t>();
+      o.data_seed = field_as<std::uint64_t>(value, key, "an int >= 0");
     else if (key == "dataset_config")
       o.dataset_config = value.is_none() ? "" : rp::fspath(value);
     else if (key == "threads")
-      o.threads = value.cast<int>();
+      o.threads = field_as<int>(value, key, "an int");
     else
       suite_fields[key_obj] = value;
   }
@@ -213,6 +229,7 @@ py::dict main_job(const py::dict& fields, const py::object& log) {
   }
   set_threads(o.threads);
   rp::Callback callback(log);
+  o.on_training_record = [&callback] { callback.poll(); };
   std::optional<eval::MainJobResult> result;
   {
     py::gil_scoped_release release;

@@ -176,9 +176,10 @@ inline nlohmann::json from_python(const py::handle& obj) {
 /// A Python callable (or None) that C++ code calls, from any thread, with the GIL taken, one
 /// call at a time, with the arguments a `make_args` lambda builds as a py::tuple (it runs with
 /// the GIL, so it may make Python objects). A call that returns False, raises, or finds a
-/// pending KeyboardInterrupt (checked at every call, also without a callable) asks the
-/// computation to stop: operator() returns false (for C++ code that can stop by itself), and
-/// stop_unless_going() throws CallbackStop (for code that stops by unwinding). The binding,
+/// pending KeyboardInterrupt (checked at every call, also without a callable, but only on the
+/// main thread: Python sees signals there alone, so a call from a worker thread finds none)
+/// asks the computation to stop: operator() returns false (for C++ code that can stop by itself),
+/// and stop_unless_going() throws CallbackStop (for code that stops by unwinding). The binding,
 /// back with the GIL, calls finish() to re-raise what the callable raised. The C++ code must
 /// have released the GIL (py::gil_scoped_release).
 class Callback {
@@ -220,6 +221,22 @@ class Callback {
   template <class MakeArgs>
   void stop_unless_going(MakeArgs&& make_args) {
     if (!(*this)(std::forward<MakeArgs>(make_args)))
+      throw CallbackStop();
+  }
+
+  /// Without calling the callable: throws CallbackStop when it asked to stop before or a
+  /// KeyboardInterrupt is pending (seen on the main thread only: Python runs signal handlers
+  /// there), for code that reports more often than the callable wants to hear.
+  void poll() {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    if (!stopped_) {
+      py::gil_scoped_acquire gil;
+      if (PyErr_CheckSignals() != 0) {
+        error_.emplace();  // fetches the KeyboardInterrupt
+        stopped_ = true;
+      }
+    }
+    if (stopped_)
       throw CallbackStop();
   }
 

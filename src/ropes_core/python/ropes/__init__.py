@@ -11,10 +11,13 @@ import pkgutil
 # the parts live in one install prefix per package: let every ropes/ on sys.path count
 __path__ = pkgutil.extend_path(__path__, __name__)
 
-from .errors import ConfigError, Error, FileFormatError, ShapeError  # noqa: E402
+from .errors import (ConfigError, Error, FileFormatError, MeshError, ModelError,  # noqa: E402
+                     RenderError, ShapeError)
 
-__all__ = ["ConfigError", "Error", "FileFormatError", "ShapeError",
-           "dataset", "sim", "crl", "eval"]
+# the exceptions; the parts are imported by name (`from ropes import sim`), never by `*`,
+# which would load every extension and shadow the builtin eval
+__all__ = ["ConfigError", "Error", "FileFormatError", "MeshError", "ModelError", "RenderError",
+           "ShapeError"]
 
 _PARTS = ("dataset", "sim", "crl", "eval")
 

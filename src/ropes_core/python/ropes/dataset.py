@@ -9,10 +9,11 @@ from numpy arrays, so that images of your own can go through ropes-train and rop
     >>> d.columns["images"]          # Column(dtype='uint8', row_shape=(1, 64, 64))
     >>> images = d.read("images", 0, 100)       # [100, 1, 64, 64] uint8, one copy
     >>> view = d.shard("angles", 0)             # memory-mapped, read-only, no copy
-    >>> d.regime("obs")                         # the rows of a regime, by name
+    >>> d.regime("observational")               # the rows of a regime, by name
 """
 import collections
 import json
+import operator
 import os
 
 import numpy as np
@@ -78,7 +79,12 @@ class Dataset:
 
     def take(self, column, rows):
         """The rows `rows` (any order, repeats allowed) of `column`, in that order."""
-        return self._reader.read_at(column, np.asarray(rows, dtype=np.int64))
+        idx = np.asarray(rows)
+        if idx.ndim != 1 or (idx.dtype.kind not in "iu" and idx.size > 0):
+            raise _shape_error(f"rows: expected a 1-d array of integer row indices, got a "
+                               f"{idx.dtype} array of shape {list(idx.shape)} (a boolean mask: "
+                               "np.flatnonzero(mask))")
+        return self._reader.read_at(column, np.ascontiguousarray(idx, dtype=np.int64))
 
     def shard(self, column, shard):
         """Shard `shard`'s rows of `column` as a read-only array memory-mapped from its file:
@@ -87,7 +93,8 @@ class Dataset:
 
     @property
     def regime_names(self):
-        """The regimes of a generated dataset ("obs", "<joint>_int1", ...), in index order."""
+        """The regimes of a generated dataset ("observational", "do(<joint>)=1", ...), in
+        index order."""
         names = self.metadata.get("regime_names")
         if names is None:
             raise KeyError(f"{self.path}: the metadata has no regime_names (not a dataset "
@@ -143,10 +150,14 @@ def write(path, columns, metadata=None, rows_per_shard=None, dataset_id=""):
         arrays[name] = a
     if rows_per_shard is None:
         rows_per_shard = rows
-    if not isinstance(rows_per_shard, int) or isinstance(rows_per_shard, bool) \
-            or rows_per_shard < 1:
+    try:
+        ok = not isinstance(rows_per_shard, bool) and operator.index(rows_per_shard) >= 1
+    except TypeError:
+        ok = False
+    if not ok:
         raise ValueError(f"write {path}: rows_per_shard is {rows_per_shard!r}; expected an "
                          "int >= 1")
+    rows_per_shard = operator.index(rows_per_shard)
     if metadata is None:
         metadata = {}
     if not isinstance(metadata, dict):

@@ -35,3 +35,10 @@ class MeshError(Error, ValueError):
 class RenderError(Error, RuntimeError):
     """No OpenGL context could be made (sim::RenderError)."""
 
+
+def check_callback(f, what):
+    """TypeError now, not minutes later at its first call, when `f` is neither None nor
+    callable."""
+    if f is not None and not callable(f):
+        raise TypeError(f"{what} is {f!r} ({type(f).__name__}); expected a callable or None")
+

@@ -130,3 +130,15 @@ def test_shuffled_indices_is_a_seeded_permutation():
     assert sorted(a.tolist()) == list(range(1000))
     np.testing.assert_array_equal(a, dataset.shuffled_indices(1000, 7, 0))
     assert not np.array_equal(a, dataset.shuffled_indices(1000, 7, 1))
+
+
+def test_row_indices_are_integers_and_counts_may_be_numpy_integers(tmp_path):
+    d = dataset.write(tmp_path / "d", _columns(), rows_per_shard=np.int64(4))
+    assert d.shard_count == 3
+    with pytest.raises(ropes.ShapeError, match="a boolean mask: np.flatnonzero"):
+        d.take("angles", np.ones(10, bool))
+    with pytest.raises(ropes.ShapeError, match="got a float64 array"):
+        d.take("angles", [0.5, 1.5])
+    with pytest.raises(ropes.ShapeError, match=r"of shape \[2, 1\]"):
+        d.take("angles", [[0], [1]])
+    assert d.take("angles", []).shape == (0, 3)

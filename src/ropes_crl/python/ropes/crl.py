@@ -12,6 +12,7 @@ import collections
 import os
 
 from . import _crl
+from .errors import check_callback
 
 ExperimentConfig = _crl.ExperimentConfig
 ExperimentConfig.__doc__ = """An experiment config (ropes_crl/experiment_config.hpp): the
@@ -37,8 +38,11 @@ def train(config, data, out, seed=0, threads=1, last_stage=3, progress=None):
     `progress(record)` gets every record written to the run's metrics.jsonl, as a dict (stage,
     step, losses, ...), from the training threads one call at a time. Returning False stops
     the training cleanly at that point (TrainResult.stopped; the run keeps its last checkpoint
-    and the same call resumes it); what it raises, and Ctrl-C, stop it as well and are raised
-    here. The GIL is released while the run computes."""
+    and the same call resumes it); what it raises stops it as well and is raised here, and so
+    does Ctrl-C, which Python sees on the main thread only: in stage 3 the AE2s report from
+    threads of their own, so Ctrl-C takes effect when the stage ends. The GIL is released while
+    the run computes."""
+    check_callback(progress, "progress")
     r = _crl.train(_experiment(config), os.fspath(data), os.fspath(out), seed, threads,
                    last_stage, progress)
     return TrainResult(os.fspath(out), r["complete"], r["stopped"])

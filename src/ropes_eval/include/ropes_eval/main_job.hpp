@@ -32,6 +32,10 @@ struct MainJobOptions {
   std::string dataset_config;   ///< empty: the experiment config's dataset.config
   int threads = 1;              ///< 1..256; every count gives the same bytes
   bool progress_bar = false;    ///< training draws a bar on stderr (else it logs lines)
+  /// Called at every metrics record of the training (from the training threads, one call at
+  /// a time; may be empty); what it throws stops the job there, and the run keeps its last
+  /// checkpoints (a later call resumes). What the Python bindings stop a job with.
+  std::function<void()> on_training_record;
   /// The evaluation; by default the suites id, ood and occlusion. Its out, cache, data,
   /// test_seed and threads are the job's (OUT/report, OUT/test-data, generated, data_seed
   /// + 1, threads).

@@ -13,7 +13,7 @@ import os
 import numpy as np
 
 from . import _eval
-from .errors import ShapeError
+from .errors import ShapeError, check_callback
 
 
 def _real(x, what):
@@ -159,6 +159,7 @@ def run_suites(run, suites=("id",), data=None, out=None, cache=None, dataset_con
                    protocol=dict(repeats=repeats, calibration_samples=calibration_samples,
                                  test_samples=test_samples, seed=seed,
                                  probe_steps=probe_steps))
+    check_callback(log, "log")
     d = _eval.run_suites(os.fspath(run), options, log)
     if d["stopped"]:
         return Report({}, "", "", True)
@@ -185,10 +186,13 @@ def run_main_job(config, out=None, seed=0, data_seed=0, dataset_config=None, thr
     """The ROPES main job on an experiment config, as ropes-run runs it (the same bytes):
     generate the training set, train, evaluate the suites, report, into `out` (default
     runs/<config name>); resumes where an earlier call stopped. `log(stage, line)` gets the
-    progress lines (stage 1 generate, 2 train, 3 evaluate); returning False stops the job."""
+    progress lines (stage 1 generate, 2 train, 3 evaluate); returning False stops the job at
+    its next line, and Ctrl-C at its next line or training record (seen on the main thread
+    only: the side-by-side AE2s of stage 3 run on threads of their own)."""
     options = dict(config=os.fspath(config), out=None if out is None else os.fspath(out),
                    seed=seed, data_seed=data_seed, dataset_config=dataset_config,
                    threads=threads, suites=list(suites), supervised_max_steps=supervised_max_steps,
                    protocol=dict(repeats=repeats, calibration_samples=calibration_samples,
                                  test_samples=test_samples, probe_steps=probe_steps))
+    check_callback(log, "log")
     return MainJob(**_eval.run_main_job(options, log))

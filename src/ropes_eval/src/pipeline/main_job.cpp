@@ -167,6 +167,8 @@ MainJobResult run_main_job(const MainJobOptions& options,
     t.seed = options.seed;
     t.threads = options.threads;
     t.progress_bar = options.progress_bar;
+    if (options.on_training_record)
+      t.on_metrics = [&options](const nlohmann::json&) { options.on_training_record(); };
     log(2, config.name + " (seed " + std::to_string(options.seed) + ") into " + r.run_dir.string());
     const auto at = Clock::now();
     crl::train(config, r.train_data, r.run_dir, t);

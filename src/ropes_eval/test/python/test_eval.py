@@ -141,3 +141,17 @@ def test_bad_evaluations_are_refused_before_anything_is_written(tmp_path):
     assert not (tmp_path / "run-eval").exists() and not (tmp_path / "e").exists()
     with pytest.raises(ValueError, match="'odd' is not a suite"):
         reval.run_suites(tmp_path / "run", suites=["odd"])
+
+
+def test_bad_arguments_name_the_field_before_anything_runs(tmp_path):
+    with pytest.raises(ValueError, match=r"repeats is 3\.0; expected an int"):
+        reval.evaluate_run(tmp_path / "run", tmp_path / "data", repeats=3.0)
+    with pytest.raises(ValueError, match=r"seed is -1; expected an int >= 0"):
+        reval.evaluate_run(tmp_path / "run", tmp_path / "data", seed=-1)
+    with pytest.raises(ValueError, match=r"threads is '2'; expected an int"):
+        reval.run_main_job("1c-tiny", tmp_path / "job", threads="2")
+    with pytest.raises(TypeError, match=r"log is 5 \(int\); expected a callable or None"):
+        reval.run_main_job("1c-tiny", tmp_path / "job", log=5)
+    with pytest.raises(TypeError, match=r"progress is 'x' \(str\); expected a callable"):
+        sim.generate_dataset("tiny-1c", tmp_path / "data", progress="x")
+    assert not (tmp_path / "job").exists() and not (tmp_path / "data").exists()

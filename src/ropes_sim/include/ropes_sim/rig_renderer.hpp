@@ -1,7 +1,7 @@
 #pragma once
 /// @file rig_renderer.hpp
 /// RigRenderer: one instant of a dataset config's rig, rendered. Given the angles of the
-/// config's distribution joints (the other movable joints at 0, as in a dataset), Simbody
+/// config's distribution joints (which are every movable joint of the URDF), Simbody
 /// places the links and every camera renders: the bytes of a dataset row's `images` for the
 /// same angles, laid out [cameras, height, width]. What ropes-sim-stream publishes.
 ///

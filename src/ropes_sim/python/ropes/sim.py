@@ -15,7 +15,7 @@ import os
 import numpy as np
 
 from . import _sim
-from .errors import ShapeError
+from .errors import ShapeError, check_callback
 
 DatasetConfig = _sim.DatasetConfig
 DatasetConfig.__doc__ = """A dataset config (ropes_sim/dataset_config.hpp): the robot's URDF,
@@ -83,7 +83,7 @@ class Robot:
 
 class Rig:
     """A dataset config's robot seen by its camera rig: the images of a dataset row for the
-    given angles of the config's distribution joints (the other joints at 0), as
+    given angles of the config's distribution joints (every movable joint of the URDF), as
     ropes-generate renders them. Owns an OSMesa context: use it on the thread that made it."""
 
     def __init__(self, config):
@@ -127,6 +127,7 @@ def generate_dataset(config, out, seed=0, threads=1, shard_index=0, shard_count=
     returns False, generation stops after that shard (GenerateResult.stopped; calling again
     resumes), and what it raises (KeyboardInterrupt included) stops it and is raised here.
     Errors name the directory, the config field or the camera, before anything is written."""
+    check_callback(progress, "progress")
     r = _sim.generate_dataset(_config(config), os.fspath(out), seed, threads, shard_index,
                               shard_count, progress)
     return GenerateResult(**r)
