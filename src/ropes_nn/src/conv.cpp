@@ -4,12 +4,15 @@
 //   dw = conv_weight_grad(x, g)     the adjoint in w
 // Each one's backward is written with the other two, so gradients of gradients work.
 
+#include <omp.h>
+
 #include <algorithm>
 #include <atomic>
 #include <memory>
 #include <stdexcept>
 #include <string>
 
+#include "conv_kernels.hpp"
 #include "gemm.hpp"
 #include "ropes_nn/ops.hpp"
 #include "ropes_nn/parallel.hpp"
@@ -18,19 +21,6 @@
 namespace ropes::nn {
 
 namespace {
-
-// shapes and padding of one forward convolution x [n, c, h, w] * w [o, c, kh, kw]
-struct ConvGeometry {
-  std::int64_t n, c, h, w, o, kh, kw, oh, ow;
-  int stride;
-  int top, left;  // bottom/right padding only shows in oh, ow
-
-  std::int64_t patch() const { return c * kh * kw; }  // rows of the im2col matrix
-  std::int64_t pixels() const { return oh * ow; }     // its columns
-  Shape x_shape() const { return Shape{n, c, h, w}; }
-  Shape w_shape() const { return Shape{o, c, kh, kw}; }
-  Shape y_shape() const { return Shape{n, o, oh, ow}; }
-};
 
 // the output columns [begin, end) of one kernel column kj whose input pixel is inside the
 // image: ix = ox * stride - left + kj in [0, w)
@@ -44,57 +34,78 @@ void inside_range(const ConvGeometry& g, std::int64_t kj, std::int64_t* begin, s
   *end = e;
 }
 
-// x [c, h, w] -> col [c*kh*kw, oh*ow], zeros where the window leaves the image
-void im2col(const float* x, const ConvGeometry& g, float* col) {
+// x [c, h, w] -> the columns of output pixels [p0, p1) of the im2col matrix
+// [c*kh*kw, oh*ow], into col with row stride ld (column p0 first), zeros where the window
+// leaves the image
+void im2col(const float* x, const ConvGeometry& g, float* col, std::int64_t ld, std::int64_t p0,
+            std::int64_t p1) {
+  if (p0 >= p1)
+    return;
+  const std::int64_t oy_first = p0 / g.ow, oy_last = (p1 - 1) / g.ow;
   for (std::int64_t kj = 0; kj < g.kw; ++kj) {
-    std::int64_t ox_begin = 0, ox_end = 0;
-    inside_range(g, kj, &ox_begin, &ox_end);
+    std::int64_t in_begin = 0, in_end = 0;
+    inside_range(g, kj, &in_begin, &in_end);
     const std::int64_t offset = kj - g.left;
     for (std::int64_t ch = 0; ch < g.c; ++ch)
       for (std::int64_t ki = 0; ki < g.kh; ++ki) {
-        float* row = col + ((ch * g.kh + ki) * g.kw + kj) * g.pixels();
-        for (std::int64_t oy = 0; oy < g.oh; ++oy) {
+        float* row = col + ((ch * g.kh + ki) * g.kw + kj) * ld - p0;
+        for (std::int64_t oy = oy_first; oy <= oy_last; ++oy) {
+          // this output row's columns within [p0, p1)
+          const std::int64_t first = std::max(oy * g.ow, p0) - oy * g.ow;
+          const std::int64_t last = std::min(oy * g.ow + g.ow, p1) - oy * g.ow;
           float* out = row + oy * g.ow;
           const std::int64_t iy = oy * g.stride - g.top + ki;
           if (iy < 0 || iy >= g.h) {
-            std::fill(out, out + g.ow, 0.0f);
+            std::fill(out + first, out + last, 0.0f);
             continue;
           }
+          const std::int64_t b = std::clamp(in_begin, first, last);
+          const std::int64_t e = std::clamp(in_end, b, last);
           const float* in = x + (ch * g.h + iy) * g.w + offset;
-          std::fill(out, out + ox_begin, 0.0f);
+          std::fill(out + first, out + b, 0.0f);
           if (g.stride == 1) {
-            std::copy(in + ox_begin, in + ox_end, out + ox_begin);
+            std::copy(in + b, in + e, out + b);
           } else {
-            for (std::int64_t ox = ox_begin; ox < ox_end; ++ox)
+            for (std::int64_t ox = b; ox < e; ++ox)
               out[ox] = in[ox * g.stride];
           }
-          std::fill(out + ox_end, out + g.ow, 0.0f);
+          std::fill(out + e, out + last, 0.0f);
         }
       }
   }
 }
 
-// the adjoint of im2col: col [c*kh*kw, oh*ow] summed back into x [c, h, w] (x zeroed first)
-void col2im(const float* col, const ConvGeometry& g, float* x) {
-  std::fill(x, x + g.c * g.h * g.w, 0.0f);
+// the adjoint of im2col: the columns of output pixels [p0, p1) of col (row stride ld,
+// column p0 first) added into x [c, h, w]. Each element of x receives its terms in the order
+// of (ki, kj), which is the descending order of the output pixel they come from: tiles of
+// pixels added last to first give every element the sums of the whole matrix at once.
+void col2im(const float* col, std::int64_t ld, const ConvGeometry& g, float* x, std::int64_t p0,
+            std::int64_t p1) {
+  if (p0 >= p1)
+    return;
+  const std::int64_t oy_first = p0 / g.ow, oy_last = (p1 - 1) / g.ow;
   for (std::int64_t ch = 0; ch < g.c; ++ch)
     for (std::int64_t ki = 0; ki < g.kh; ++ki)
       for (std::int64_t kj = 0; kj < g.kw; ++kj) {
-        std::int64_t ox_begin = 0, ox_end = 0;
-        inside_range(g, kj, &ox_begin, &ox_end);
+        std::int64_t in_begin = 0, in_end = 0;
+        inside_range(g, kj, &in_begin, &in_end);
         const std::int64_t offset = kj - g.left;
-        const float* row = col + ((ch * g.kh + ki) * g.kw + kj) * g.pixels();
-        for (std::int64_t oy = 0; oy < g.oh; ++oy) {
+        const float* row = col + ((ch * g.kh + ki) * g.kw + kj) * ld - p0;
+        for (std::int64_t oy = oy_first; oy <= oy_last; ++oy) {
           const std::int64_t iy = oy * g.stride - g.top + ki;
           if (iy < 0 || iy >= g.h)
             continue;
+          const std::int64_t first = std::max(oy * g.ow, p0) - oy * g.ow;
+          const std::int64_t last = std::min(oy * g.ow + g.ow, p1) - oy * g.ow;
+          const std::int64_t b = std::clamp(in_begin, first, last);
+          const std::int64_t e = std::clamp(in_end, b, last);
           float* out = x + (ch * g.h + iy) * g.w + offset;
           const float* in = row + oy * g.ow;
           if (g.stride == 1) {
-            for (std::int64_t ox = ox_begin; ox < ox_end; ++ox)
+            for (std::int64_t ox = b; ox < e; ++ox)
               out[ox] += in[ox];
           } else {
-            for (std::int64_t ox = ox_begin; ox < ox_end; ++ox)
+            for (std::int64_t ox = b; ox < e; ++ox)
               out[ox * g.stride] += in[ox];
           }
         }
@@ -107,58 +118,120 @@ void count_flops(const ConvGeometry& g) {
   add_flops(static_cast<std::uint64_t>(2 * g.n * g.o * g.patch() * g.pixels()));
 }
 
-// each thread takes a contiguous run of images, with its own im2col buffer
-Buffer conv_forward(const float* x, const float* w, const ConvGeometry& g) {
+std::int64_t tiles_of(std::int64_t size, std::int64_t tile) {
+  return (size + tile - 1) / tile;
+}
+
+}  // namespace
+
+// y_i [o, pixels] = w [o, patch] * col_i [patch, pixels], a tile of columns at a time. The
+// threads take contiguous runs of (image, tile) pairs, so one image's tiles are shared when
+// the images are fewer than the threads (one frame's latency).
+Buffer conv_forward(const float* x, const float* w, const ConvGeometry& g, ConvTiling tiling) {
   count_flops(g);
   Buffer y(static_cast<std::size_t>(g.y_shape().numel()));
-  parallel_for(g.n, [&](int, std::int64_t begin, std::int64_t end) {
-    Buffer col(static_cast<std::size_t>(g.patch() * g.pixels()));
-    for (std::int64_t i = begin; i < end; ++i) {
-      im2col(x + i * g.c * g.h * g.w, g, col.data());
-      gemm(w, col.data(), y.data() + i * g.o * g.pixels(), g.o, g.patch(), g.pixels());
+  const std::int64_t m = g.o, k = g.patch(), n = g.pixels(), image = g.c * g.h * g.w;
+  const bool blocked = tiling == ConvTiling::kTiles && gemm_is_blocked(m, k, n);
+  const GemmBlocking blocking = blocked ? gemm_blocking(m, k, n) : GemmBlocking{k, n, m};
+  const std::int64_t tile = blocking.mc, tiles = tiles_of(n, tile);
+  // fewer tiles than threads: the whole-image product, whose rows gemm() shares out
+  if (!blocked || (g.n * tiles < num_threads() && !omp_in_parallel())) {
+    parallel_for(g.n, [&](int, std::int64_t begin, std::int64_t end) {
+      Buffer col(static_cast<std::size_t>(k * n));
+      for (std::int64_t i = begin; i < end; ++i) {
+        im2col(x + i * image, g, col.data(), n, 0, n);
+        gemm(w, col.data(), y.data() + i * m * n, m, k, n);
+      }
+    });
+    return y;
+  }
+  parallel_for(g.n * tiles, [&](int, std::int64_t begin, std::int64_t end) {
+    Buffer col(static_cast<std::size_t>(k * std::min(tile, n)));
+    for (std::int64_t item = begin; item < end; ++item) {
+      const std::int64_t i = item / tiles, p0 = item % tiles * tile, p1 = std::min(p0 + tile, n);
+      im2col(x + i * image, g, col.data(), p1 - p0, p0, p1);
+      gemm_tile(blocking, w, false, k, col.data(), false, p1 - p0, y.data() + i * m * n + p0, n, m,
+                k, p1 - p0, false);
     }
   });
   return y;
 }
 
-Buffer conv_input_grad(const float* gy, const float* w, const ConvGeometry& g) {
+// col_i [patch, pixels] = w^T [patch, o] * gy_i [o, pixels], then col2im: a tile of columns
+// at a time, last to first (see col2im), one image per thread
+Buffer conv_input_grad(const float* gy, const float* w, const ConvGeometry& g, ConvTiling tiling) {
   count_flops(g);
   Buffer dx(static_cast<std::size_t>(g.x_shape().numel()));
+  const std::int64_t m = g.patch(), k = g.o, n = g.pixels(), image = g.c * g.h * g.w;
+  // fewer images than threads: the whole-image product, whose rows gemm() shares out
+  if (tiling == ConvTiling::kWholeImages || !gemm_is_blocked(m, k, n) ||
+      (g.n < num_threads() && !omp_in_parallel())) {
+    parallel_for(g.n, [&](int, std::int64_t begin, std::int64_t end) {
+      Buffer col(static_cast<std::size_t>(m * n));
+      for (std::int64_t i = begin; i < end; ++i) {
+        gemm(w, true, gy + i * k * n, false, col.data(), m, k, n, false);
+        float* dxi = dx.data() + i * image;
+        std::fill(dxi, dxi + image, 0.0f);
+        col2im(col.data(), n, g, dxi, 0, n);
+      }
+    });
+    return dx;
+  }
+  const GemmBlocking blocking = gemm_blocking(m, k, n);
+  const std::int64_t tile = blocking.mc, tiles = tiles_of(n, tile);
   parallel_for(g.n, [&](int, std::int64_t begin, std::int64_t end) {
-    Buffer col(static_cast<std::size_t>(g.patch() * g.pixels()));
+    Buffer col(static_cast<std::size_t>(m * std::min(tile, n)));
     for (std::int64_t i = begin; i < end; ++i) {
-      // col [patch, pixels] = w^T [patch, o] * gy_i [o, pixels]
-      gemm(w, true, gy + i * g.o * g.pixels(), false, col.data(), g.patch(), g.o, g.pixels(),
-           false);
-      col2im(col.data(), g, dx.data() + i * g.c * g.h * g.w);
+      float* dxi = dx.data() + i * image;
+      std::fill(dxi, dxi + image, 0.0f);
+      for (std::int64_t t = tiles - 1; t >= 0; --t) {
+        const std::int64_t p0 = t * tile, p1 = std::min(p0 + tile, n);
+        gemm_tile(blocking, w, true, m, gy + i * k * n + p0, false, n, col.data(), p1 - p0, m, k,
+                  p1 - p0, false);
+        col2im(col.data(), p1 - p0, g, dxi, p0, p1);
+      }
     }
   });
   return dx;
 }
 
-// one partial sum per reduction block of the batch (fixed by the batch size), added in block
-// order: the same bits at every thread count
-Buffer conv_weight_grad(const float* x, const float* gy, const ConvGeometry& g) {
+// dw [o, patch] += gy_i [o, pixels] * col_i^T [pixels, patch], a block of the sum over pixels
+// at a time, in order. One partial sum per reduction block of the batch (fixed by the batch
+// size), added in block order: the same bits at every thread count.
+Buffer conv_weight_grad(const float* x, const float* gy, const ConvGeometry& g, ConvTiling tiling) {
   count_flops(g);
-  const std::size_t w_size = static_cast<std::size_t>(g.o * g.patch());
+  const std::int64_t m = g.o, k = g.pixels(), n = g.patch(), image = g.c * g.h * g.w;
+  const std::size_t w_size = static_cast<std::size_t>(m * n);
+  const bool whole = tiling == ConvTiling::kWholeImages || !gemm_is_blocked(m, k, n);
+  const GemmBlocking blocking = whole ? GemmBlocking{k, n, m} : gemm_blocking(m, k, n);
+  const std::int64_t tile = whole ? k : blocking.kc, tiles = tiles_of(k, tile);
   std::vector<Buffer> partial(static_cast<std::size_t>(reduction_blocks(g.n)),
                               Buffer(w_size, 0.0f));
   for_each_reduction_block(g.n, [&](int block, std::int64_t begin, std::int64_t end) {
-    Buffer col(static_cast<std::size_t>(g.patch() * g.pixels()));
+    Buffer col(static_cast<std::size_t>(n * std::min(tile, k)));
     float* dw = partial[static_cast<std::size_t>(block)].data();
     for (std::int64_t i = begin; i < end; ++i) {
-      im2col(x + i * g.c * g.h * g.w, g, col.data());
-      // dw [o, patch] += gy_i [o, pixels] * col^T [pixels, patch]
-      gemm(gy + i * g.o * g.pixels(), false, col.data(), true, dw, g.o, g.pixels(), g.patch(),
-           true);
+      if (whole) {
+        im2col(x + i * image, g, col.data(), k, 0, k);
+        gemm(gy + i * m * k, false, col.data(), true, dw, m, k, n, true);
+        continue;
+      }
+      for (std::int64_t t = 0; t < tiles; ++t) {
+        const std::int64_t p0 = t * tile, p1 = std::min(p0 + tile, k);
+        im2col(x + i * image, g, col.data(), p1 - p0, p0, p1);
+        gemm_tile(blocking, gy + i * m * k + p0, false, k, col.data(), true, p1 - p0, dw, n, m,
+                  p1 - p0, n, true);
+      }
     }
   });
   for (std::size_t c = 1; c < partial.size(); ++c) {
-    for (std::size_t k = 0; k < w_size; ++k)
-      partial[0][k] += partial[c][k];
+    for (std::size_t j = 0; j < w_size; ++j)
+      partial[0][j] += partial[c][j];
   }
   return std::move(partial[0]);
 }
+
+namespace {
 
 Tensor conv_op(const Tensor& x, const Tensor& w, const ConvGeometry& g);
 Tensor conv_input_grad_op(const Tensor& gy, const Tensor& w, const ConvGeometry& g);

@@ -88,11 +88,12 @@ float* at_least(Buffer& buffer, std::size_t size) {
   return buffer.data();
 }
 
-void rows_of_product(GemmProduct p, std::int64_t begin, std::int64_t end) {
+void block_of_product(GemmProduct p, std::int64_t r0, std::int64_t r1, std::int64_t c0,
+                      std::int64_t c1) {
   thread_local Buffer block_a, block_b;
   p.block_a = at_least(block_a, static_cast<std::size_t>(p.kc * p.mc));
   p.block_b = at_least(block_b, static_cast<std::size_t>(p.kc * p.nc));
-  gemm_kernels().rows(p, begin, end);
+  gemm_kernels().block(p, r0, r1, c0, c1);
 }
 
 }  // namespace
@@ -112,6 +113,28 @@ void eigen_blocking_at(const CacheSizes& caches, std::int64_t& k, std::int64_t& 
   gemm_kernels().eigen_blocking(caches, k, m, n);
 }
 
+bool gemm_is_blocked(std::int64_t m, std::int64_t k, std::int64_t n) {
+  return m > 1 && n > 1 && k + m + n >= kCoefficientBased;
+}
+
+GemmBlocking gemm_blocking(std::int64_t m, std::int64_t k, std::int64_t n) {
+  // a row-major product is Eigen's column-major one transposed: mc runs over n, nc over m
+  GemmBlocking b{k, n, m};
+  reference_blocking(b.kc, b.mc, b.nc);
+  return b;
+}
+
+void gemm_tile(const GemmBlocking& whole, const float* a, bool a_transposed, std::int64_t lda,
+               const float* b, bool b_transposed, std::int64_t ldb, float* c, std::int64_t ldc,
+               std::int64_t m, std::int64_t k, std::int64_t n, bool accumulate) {
+  if (m == 0 || n == 0)
+    return;
+  const GemmProduct p{a,   a_transposed, b,        b_transposed, c,        m,   k,
+                      n,   accumulate,   whole.kc, whole.mc,     whole.nc, lda, ldb,
+                      ldc, nullptr,      nullptr};
+  block_of_product(p, 0, m, 0, n);
+}
+
 void gemm(const float* a, bool a_transposed, const float* b, bool b_transposed, float* c,
           std::int64_t m, std::int64_t k, std::int64_t n, bool accumulate) {
   if (m == 0 || n == 0)
@@ -121,29 +144,76 @@ void gemm(const float* a, bool a_transposed, const float* b, bool b_transposed, 
       std::fill(c, c + m * n, 0.0f);
     return;
   }
-  GemmProduct p{a, a_transposed, b,      b_transposed, c, m, k, n, accumulate, k, n,
-                m, nullptr,      nullptr};
-  if (m == 1 || n == 1 || k + m + n < kCoefficientBased) {
+  if (!gemm_is_blocked(m, k, n)) {
+    const GemmProduct p{a,
+                        a_transposed,
+                        b,
+                        b_transposed,
+                        c,
+                        m,
+                        k,
+                        n,
+                        accumulate,
+                        k,
+                        n,
+                        m,
+                        a_transposed ? m : k,
+                        b_transposed ? k : n,
+                        n,
+                        nullptr,
+                        nullptr};
     gemm_kernels().small(p);
     return;
   }
-  // a row-major product is Eigen's column-major one transposed: mc runs over n, nc over m
-  reference_blocking(p.kc, p.mc, p.nc);
-  const std::int64_t quanta = (m + kRowQuantum - 1) / kRowQuantum;
+  const GemmBlocking blocking = gemm_blocking(m, k, n);
+  const GemmProduct p{a,
+                      a_transposed,
+                      b,
+                      b_transposed,
+                      c,
+                      m,
+                      k,
+                      n,
+                      accumulate,
+                      blocking.kc,
+                      blocking.mc,
+                      blocking.nc,
+                      a_transposed ? m : k,
+                      b_transposed ? k : n,
+                      n,
+                      nullptr,
+                      nullptr};
+  // Two splits over threads, each leaving every element's instructions as in the whole
+  // product: rows of op(a) in multiples of kRowQuantum, or, when the rows are too few for the
+  // threads (a convolution's output channels for one image), columns in multiples of mc
+  // (Eigen runs over its rows, our columns, in blocks of mc from the first: a run of whole
+  // blocks is blocked the same way on its own)
   const double work = static_cast<double>(m) * static_cast<double>(n) * static_cast<double>(k);
-  std::int64_t chunks = 1;
-  if (!omp_in_parallel()) {
-    chunks = std::min<std::int64_t>(
-        {num_threads(), quanta,
-         std::max<std::int64_t>(1, static_cast<std::int64_t>(work / kMinWorkPerThread))});
-  }
-  if (chunks == 1) {
-    rows_of_product(p, 0, m);
+  const std::int64_t most =
+      omp_in_parallel()
+          ? 1
+          : std::min<std::int64_t>(
+                num_threads(),
+                std::max<std::int64_t>(1, static_cast<std::int64_t>(work / kMinWorkPerThread)));
+  const std::int64_t row_quanta = (m + kRowQuantum - 1) / kRowQuantum;
+  const std::int64_t col_quanta = (n + p.mc - 1) / p.mc;
+  const std::int64_t row_chunks = std::min(most, row_quanta);
+  const std::int64_t col_chunks = std::min(most, col_quanta);
+  if (row_chunks >= col_chunks) {
+    if (row_chunks == 1) {
+      block_of_product(p, 0, m, 0, n);
+      return;
+    }
+    parallel_for(row_quanta, static_cast<int>(row_chunks),
+                 [&](int, std::int64_t begin, std::int64_t end) {
+                   block_of_product(p, begin * kRowQuantum, std::min(end * kRowQuantum, m), 0, n);
+                 });
     return;
   }
-  parallel_for(quanta, static_cast<int>(chunks), [&](int, std::int64_t begin, std::int64_t end) {
-    rows_of_product(p, begin * kRowQuantum, std::min(end * kRowQuantum, m));
-  });
+  parallel_for(col_quanta, static_cast<int>(col_chunks),
+               [&](int, std::int64_t begin, std::int64_t end) {
+                 block_of_product(p, 0, m, begin * p.mc, std::min(end * p.mc, n));
+               });
 }
 
 }  // namespace ropes::nn

@@ -18,8 +18,10 @@ namespace ropes::nn {
 //   register panel (and so which order of operations) each output takes. Here the same
 //   heuristic runs at fixed reference sizes (reference_blocking below).
 // - the threads: outside a parallel region the rows of op(a) are split over the threads in
-//   multiples of 16 (whole register panels), with the blocking of the whole product, so
-//   each output element is computed by the same instructions at every thread count.
+//   multiples of 16 (whole register panels), or its columns in multiples of mc (whole
+//   blocks of Eigen's loop) when the rows are too few, with the blocking of the whole
+//   product, so each output element is computed by the same instructions at every thread
+//   count.
 // Eigen's own threading is never used (set_num_threads keeps Eigen at one thread).
 // The instruction set: the Eigen half (gemm_kernel.cpp) is compiled for x86-64-v4 and v3
 // (and the baseline's flags when the baseline is below v3); gemm_kernels() picks the highest
@@ -35,6 +37,28 @@ inline void gemm(const float* a, const float* b, float* c, std::int64_t m, std::
                  std::int64_t n) {
   gemm(a, false, b, false, c, m, k, n, false);
 }
+
+// Whether gemm() runs an m x k x n product through the blocked kernel (else, tiny and
+// vector-shaped products, through Eigen's coefficient-wise and GEMV expressions).
+bool gemm_is_blocked(std::int64_t m, std::int64_t k, std::int64_t n);
+
+// The blocking gemm() gives a blocked m x k x n product, in Eigen's column-major view of it:
+// kc splits the sum over k, mc blocks the columns n, nc the rows m.
+struct GemmBlocking {
+  std::int64_t kc, mc, nc;
+};
+GemmBlocking gemm_blocking(std::int64_t m, std::int64_t k, std::int64_t n);
+
+// One tile of a blocked product, on the calling thread, blocked as the `whole` product is:
+// c [m, n] (+)= op(a) [m, k] * op(b) [k, n], with lda, ldb and ldc the row strides of a, b
+// and c as stored. A tile of columns [c0, c0 + n) of the whole, c0 a multiple of whole.mc and
+// n whole.mc (or what is left), gets the bits of those columns of gemm(); so does a tile of
+// the sum over k, [k0, k0 + k), k0 a multiple of whole.kc and k whole.kc (or what is left),
+// accumulated onto the tiles before it in order. The convolutions (conv.cpp) build their
+// im2col matrices a tile at a time this way, in cache.
+void gemm_tile(const GemmBlocking& whole, const float* a, bool a_transposed, std::int64_t lda,
+               const float* b, bool b_transposed, std::int64_t ldb, float* c, std::int64_t ldc,
+               std::int64_t m, std::int64_t k, std::int64_t n, bool accumulate);
 
 // The blocking reference: the cache sizes Eigen 3.4 queries on the AMD Zen 5 machine the
 // workspace's tables were measured on (L1d 48 KiB, L2 1 MiB; L3 only needs to be non-zero).

@@ -64,30 +64,32 @@ class GivenBlocking : public EigenBlocking {
 };
 
 template <int LhsOrder, int RhsOrder>
-void run_rows(const GemmProduct& p, Index begin, Index end) {
+void run_block(const GemmProduct& p, Index r0, Index r1, Index c0, Index c1) {
   GivenBlocking blocking(p);
   if (!p.accumulate) {
-    for (float* c = p.c + begin * p.n; c != p.c + end * p.n; ++c)
-      *c = 0.0f;
+    for (Index r = r0; r < r1; ++r)
+      for (float* c = p.c + r * p.ldc + c0; c != p.c + r * p.ldc + c1; ++c)
+        *c = 0.0f;
   }
-  // row `begin` of op(a): a row of a [m, k], or a column of a [k, m]
-  const float* lhs = LhsOrder == Eigen::RowMajor ? p.a + begin * p.k : p.a + begin;
-  const Index lhs_stride = LhsOrder == Eigen::RowMajor ? p.k : p.m;
-  const Index rhs_stride = RhsOrder == Eigen::RowMajor ? p.n : p.k;
-  Kernel<LhsOrder, RhsOrder>::run(end - begin, p.n, p.k, lhs, lhs_stride, p.b, rhs_stride,
-                                  p.c + begin * p.n, 1, p.n, 1.0f, blocking);
+  // row r0 of op(a): a row of a [m, k], or a column of a [k, m]; column c0 of op(b): a column
+  // of b [k, n], or a row of b [n, k]
+  const float* lhs = LhsOrder == Eigen::RowMajor ? p.a + r0 * p.lda : p.a + r0;
+  const float* rhs = RhsOrder == Eigen::RowMajor ? p.b + c0 : p.b + c0 * p.ldb;
+  Kernel<LhsOrder, RhsOrder>::run(r1 - r0, c1 - c0, p.k, lhs, p.lda, rhs, p.ldb,
+                                  p.c + r0 * p.ldc + c0, 1, p.ldc, 1.0f, blocking);
 }
 
-void rows(const GemmProduct& p, std::int64_t begin, std::int64_t end) {
+void block(const GemmProduct& p, std::int64_t r0, std::int64_t r1, std::int64_t c0,
+           std::int64_t c1) {
   constexpr int kRow = Eigen::RowMajor, kCol = Eigen::ColMajor;
   if (!p.a_transposed && !p.b_transposed)
-    run_rows<kRow, kRow>(p, begin, end);
+    run_block<kRow, kRow>(p, r0, r1, c0, c1);
   else if (!p.a_transposed)
-    run_rows<kRow, kCol>(p, begin, end);
+    run_block<kRow, kCol>(p, r0, r1, c0, c1);
   else if (!p.b_transposed)
-    run_rows<kCol, kRow>(p, begin, end);
+    run_block<kCol, kRow>(p, r0, r1, c0, c1);
   else
-    run_rows<kCol, kCol>(p, begin, end);
+    run_block<kCol, kCol>(p, r0, r1, c0, c1);
 }
 
 template <typename Lhs, typename Rhs>
@@ -190,7 +192,7 @@ void eigen_blocking(const CacheSizes& caches, std::int64_t& k, std::int64_t& m, 
 }  // namespace
 
 extern const GemmKernels kGemm;
-const GemmKernels kGemm{ROPES_KERNEL_LEVEL, &rows,           &small,
+const GemmKernels kGemm{ROPES_KERNEL_LEVEL, &block,          &small,
                         &blocking,          &eigen_blocking, &set_eigen_caches};
 
 }  // namespace ropes::nn::ROPES_KERNEL_NS

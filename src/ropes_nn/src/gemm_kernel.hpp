@@ -24,17 +24,21 @@ struct GemmProduct {
   float* c;
   std::int64_t m, k, n;
   bool accumulate;
-  std::int64_t kc, mc, nc;  // the blocking of the whole product (Eigen's column-major view)
-  float* block_a;           // kc * mc floats
-  float* block_b;           // kc * nc floats
+  std::int64_t kc, mc, nc;     // the blocking of the whole product (Eigen's column-major view)
+  std::int64_t lda, ldb, ldc;  // the row strides of a, b and c as stored
+  float* block_a;              // kc * mc floats
+  float* block_b;              // kc * nc floats
 };
 
 struct GemmKernels {
   // the compilation's level: "x86-64-v4", "x86-64-v3", the baseline's ("x86-64", ...), with
   // " (-march=native)" in a native build
   const char* level;
-  // rows [begin, end) of the blocked product
-  void (*rows)(const GemmProduct& p, std::int64_t begin, std::int64_t end);
+  // rows [row_begin, row_end) and columns [col_begin, col_end) of c, with the blocking of the
+  // whole product: each element is computed by the same instructions as in the whole product
+  // when rows start at multiples of 16 and columns at multiples of mc (gemm.hpp)
+  void (*block)(const GemmProduct& p, std::int64_t row_begin, std::int64_t row_end,
+                std::int64_t col_begin, std::int64_t col_end);
   // a tiny or vector-shaped product, whole (Eigen's coefficient-wise or GEMV expression)
   void (*small)(const GemmProduct& p);
   // Eigen 3.4's one-thread blocking heuristic at `caches` (gemm.hpp's reference_blocking)

@@ -29,9 +29,12 @@ struct Shape3 {
   std::int64_t m, k, n;
 };
 // the convolutions' products (o x patch x pixels and their adjoints), a square one, and
-// depths long enough that Eigen splits the sum over k at some cache size
-const Shape3 kShapes[] = {{16, 16, 1024}, {64, 288, 256},  {47, 576, 81},  {128, 1152, 64},
-                          {96, 3000, 40}, {33, 5000, 130}, {300, 700, 300}};
+// depths long enough that Eigen splits the sum over k at some cache size; the last three
+// have fewer rows than a thread's share (one image's convolution: 8 or 16 channels, 9 to 144
+// deep, up to 128x128 pixels), so the threads split their columns
+const Shape3 kShapes[] = {{16, 16, 1024},  {64, 288, 256},  {47, 576, 81},   {128, 1152, 64},
+                          {96, 3000, 40},  {33, 5000, 130}, {300, 700, 300}, {8, 72, 16384},
+                          {16, 144, 4099}, {8, 9, 5000}};
 
 // The witness is Eigen's own computeProductBlockingSizes, called with its cache sizes set to
 // the same values: reference_blocking must be the same arithmetic, at the reference and at

@@ -1,0 +1,77 @@
+// The convolutions' kernels (src/conv_kernels.hpp) build each image's im2col matrix a tile
+// at a time. The witness is the same kernel with the matrix built whole (one product per
+// image, as gemm() blocks it): the tiles must give the same bits, at every thread count, for
+// stride 1 and 2, SAME, VALID and uneven padding, tiles that end mid-row, and sums over
+// pixels long enough to be split.
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+#include "conv_kernels.hpp"
+#include "ropes_core/philox.hpp"
+#include "ropes_nn/parallel.hpp"
+
+namespace ropes::nn {
+namespace {
+
+std::vector<float> normals(std::int64_t n, std::uint64_t seed) {
+  core::PhiloxStream rng(seed, 0);
+  std::vector<float> v(static_cast<std::size_t>(n));
+  for (float& x : v)
+    x = static_cast<float>(rng.normal());
+  return v;
+}
+
+struct Case {
+  std::int64_t n, c, h, w, o, k;
+  int stride, top, left, bottom, right;
+};
+
+ConvGeometry geometry(const Case& c) {
+  ConvGeometry g{c.n, c.c, c.h, c.w, c.o, c.k, c.k, 0, 0, c.stride, c.top, c.left};
+  g.oh = (c.h + c.top + c.bottom - c.k) / c.stride + 1;
+  g.ow = (c.w + c.left + c.right - c.k) / c.stride + 1;
+  return g;
+}
+
+std::vector<float> values(const Buffer& b) {
+  return std::vector<float>(b.begin(), b.end());
+}
+
+// AE1's layers at x1/8 (8 channels at 128x128, stride-2 down to 64x64), a batch of one (the
+// latency path) and of three, a 5x5 VALID and an uneven explicit padding, a 1x1 convolution,
+// and one product too small for the blocked kernel (one output channel)
+const Case kCases[] = {
+    {3, 8, 128, 128, 8, 3, 1, 1, 1, 1, 1}, {1, 8, 128, 128, 16, 3, 1, 1, 1, 1, 1},
+    {2, 8, 128, 128, 8, 3, 2, 0, 0, 1, 1}, {2, 3, 37, 45, 5, 5, 1, 0, 0, 0, 0},
+    {2, 4, 40, 33, 6, 3, 2, 2, 0, 1, 3},   {2, 16, 30, 30, 12, 1, 1, 0, 0, 0, 0},
+    {2, 1, 128, 128, 8, 3, 1, 1, 1, 1, 1}, {2, 8, 20, 20, 1, 3, 1, 1, 1, 1, 1},
+};
+
+TEST(ConvKernels, TilesGiveTheWholeImagesBitsAtEveryThreadCount) {
+  const int saved = num_threads();
+  for (const Case& c : kCases) {
+    const ConvGeometry g = geometry(c);
+    const std::vector<float> x = normals(g.x_shape().numel(), 1);
+    const std::vector<float> w = normals(g.w_shape().numel(), 2);
+    const std::vector<float> gy = normals(g.y_shape().numel(), 3);
+    const std::string what = "x " + g.x_shape().str() + " w " + g.w_shape().str() + " stride " +
+                             std::to_string(g.stride);
+    set_num_threads(1);
+    const auto y = values(conv_forward(x.data(), w.data(), g, ConvTiling::kWholeImages));
+    const auto dx = values(conv_input_grad(gy.data(), w.data(), g, ConvTiling::kWholeImages));
+    const auto dw = values(conv_weight_grad(x.data(), gy.data(), g, ConvTiling::kWholeImages));
+    for (int threads : {1, 2, 3}) {
+      set_num_threads(threads);
+      const std::string at = what + " at " + std::to_string(threads) + " thread(s)";
+      EXPECT_EQ(values(conv_forward(x.data(), w.data(), g)), y) << "forward, " << at;
+      EXPECT_EQ(values(conv_input_grad(gy.data(), w.data(), g)), dx) << "input grad, " << at;
+      EXPECT_EQ(values(conv_weight_grad(x.data(), gy.data(), g)), dw) << "weight grad, " << at;
+    }
+  }
+  set_num_threads(saved);
+}
+
+}  // namespace
+}  // namespace ropes::nn
