@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
+#include <vector>
 
 #include "ropes_core/philox.hpp"
 #include "ropes_nn/gradcheck.hpp"
@@ -22,6 +24,9 @@ Tensor random_tensor(const Shape& shape, std::uint64_t stream) {
     x = rng.uniform_float() < 0.5f ? -magnitude : magnitude;
   }
   return Tensor(shape, v);
+}
+std::vector<float> values(const Tensor& t) {
+  return std::vector<float>(t.data(), t.data() + t.numel());
 }
 Tensor positive_tensor(const Shape& shape, std::uint64_t stream) {
   return abs(random_tensor(shape, stream)).detach();
@@ -167,6 +172,9 @@ TEST(GradCheck, ConvolutionsAndGroupNorm) {
                      {x, wt});
   expect_first_order("group_norm", [](const V& v) { return group_norm(v[0], 3, v[1], v[2]); },
                      {x, gamma, beta});
+  expect_first_order("group_norm_relu",
+                     [](const V& v) { return group_norm_relu(v[0], 3, v[1], v[2]); },
+                     {x, gamma, beta});
 }
 
 TEST(GradCheck, SecondOrderThroughConvolutionsAndGroupNorm) {
@@ -182,6 +190,9 @@ TEST(GradCheck, SecondOrderThroughConvolutionsAndGroupNorm) {
                       [](const V& v) { return square(conv_transpose2d(v[0], v[1], 2)); }, {x, wt});
   expect_second_order("group_norm", [](const V& v) { return group_norm(v[0], 1, v[1], v[2]); },
                       {x, gamma, beta});
+  expect_second_order("group_norm_relu",
+                      [](const V& v) { return square(group_norm_relu(v[0], 1, v[1], v[2])); },
+                      {x, gamma, beta});
   expect_second_order("group_norm, 2 groups, input computed from its own scale",
                       [](const V& v) {
                         // gamma also produces the input: group norm's differentiable backward
@@ -190,6 +201,35 @@ TEST(GradCheck, SecondOrderThroughConvolutionsAndGroupNorm) {
                         return square(group_norm(h, 2, v[1], v[2]));
                       },
                       {x, gamma, beta});
+}
+
+// group_norm_relu is relu(group_norm(...)) fused: the witness is the unfused pair, which it must
+// equal bit for bit in value and in each gradient. The shapes: several channels a group, a
+// count of (sample, group) sums that is not a multiple of the interleaved chains, batches
+// over several reduction blocks, one group.
+TEST(GroupNormRelu, IsReluOfGroupNormBitForBit) {
+  struct Case {
+    Shape x;
+    int groups;
+  };
+  for (const Case& c : {Case{Shape{3, 6, 5, 7}, 3}, Case{Shape{10, 8, 16, 16}, 8},
+                        Case{Shape{1, 4, 3, 3}, 1}, Case{Shape{5, 12, 9}, 4}}) {
+    const std::int64_t channels = c.x[1];
+    Tensor x = random_tensor(c.x, 40);
+    Tensor gamma = random_tensor(Shape{channels}, 41);
+    Tensor beta = random_tensor(Shape{channels}, 42);
+    const Tensor upstream = random_tensor(c.x, 43);
+    for (Tensor* t : {&x, &gamma, &beta})
+      t->set_requires_grad(true);
+    const Tensor fused = group_norm_relu(x, c.groups, gamma, beta);
+    const Tensor pair = relu(group_norm(x, c.groups, gamma, beta));
+    const std::string what = "x " + c.x.str() + ", " + std::to_string(c.groups) + " groups";
+    EXPECT_EQ(values(fused), values(pair)) << what;
+    const std::vector<Tensor> g_fused = grad({sum(mul(fused, upstream))}, {x, gamma, beta});
+    const std::vector<Tensor> g_pair = grad({sum(mul(pair, upstream))}, {x, gamma, beta});
+    for (std::size_t i = 0; i < 3; ++i)
+      EXPECT_EQ(values(g_fused[i]), values(g_pair[i])) << what << ", gradient " << i;
+  }
 }
 
 TEST(GradCheck, EveryModule) {

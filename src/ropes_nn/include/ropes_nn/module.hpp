@@ -89,6 +89,9 @@ class Module {
   /// module.
   Tensor register_parameter(const std::string& name, const Shape& shape, const std::string& init,
                             std::int64_t fan_in = 0);
+  /// What operator() checks before forward: the input count, and (once) that every
+  /// parameter was initialised; for a module's other entry points (GroupNorm::with_relu).
+  void check_ready(std::size_t inputs);
   /// Adds a child; its parameters are named "<name>.<their name>".
   template <typename M>
   std::shared_ptr<M> register_module(const std::string& name, std::shared_ptr<M> module) {
@@ -106,7 +109,6 @@ class Module {
   };
   void add_child(const std::string& name, std::shared_ptr<Module> module);
   void initialize_tree(std::uint64_t seed, const std::string& scope, const std::string& prefix);
-  void check_ready(std::size_t inputs);
   bool mark(const std::string& name);
 
   std::vector<Parameter> parameters_;

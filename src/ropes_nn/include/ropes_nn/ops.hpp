@@ -117,6 +117,11 @@ Tensor conv_transpose2d(const Tensor& x, const Tensor& w, int stride = 1,
 /// (PyTorch's GroupNorm uses 1e-5). Built from differentiable operations.
 Tensor group_norm(const Tensor& x, int groups, const Tensor& gamma, const Tensor& beta,
                   float eps = 1e-6f);
+/// relu(group_norm(x, ...)) in one pass, forward and backward: the same values and gradients
+/// (of every order), without the normalised tensor in between; the graph keeps one byte per
+/// element for the ReLU's gradient.
+Tensor group_norm_relu(const Tensor& x, int groups, const Tensor& gamma, const Tensor& beta,
+                       float eps = 1e-6f);
 
 // --- benchmarks ----------------------------------------------------------------------------------
 /// Floating-point operations done by the matrix products (matmul and the convolution

@@ -24,4 +24,9 @@ Tensor GroupNorm::forward(const Tensor& x) {
   return group_norm(x, groups_, scale_, bias_, eps_);
 }
 
+Tensor GroupNorm::with_relu(const Tensor& x) {
+  check_ready(1);
+  return group_norm_relu(x, groups_, scale_, bias_, eps_);
+}
+
 }  // namespace ropes::nn

@@ -12,8 +12,8 @@ ResBlockGN::ResBlockGN(std::int64_t channels, int groups) {
 }
 
 Tensor ResBlockGN::forward(const Tensor& x) {
-  const Tensor h = (*conv1_)(relu((*norm1_)(x)));
-  return add(x, (*conv2_)(relu((*norm2_)(h))));
+  const Tensor h = (*conv1_)(norm1_->with_relu(x));
+  return add(x, (*conv2_)(norm2_->with_relu(h)));
 }
 
 }  // namespace ropes::nn

@@ -12,6 +12,8 @@ class GroupNorm : public Module {
  public:
   explicit GroupNorm(std::int64_t channels, int groups = 0, float eps = 1e-6f);
   int groups() const { return groups_; }
+  /// relu(forward(x)), fused (group_norm_relu)
+  Tensor with_relu(const Tensor& x);
 
  protected:
   Tensor forward(const Tensor& x) override;
