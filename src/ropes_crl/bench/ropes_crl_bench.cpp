@@ -4,6 +4,8 @@
 // thread count). A benchmark run by hand, never a test.
 //
 //   ropes_crl_bench [--config NAME|PATH] [--anchors N] [--quick] [--no-peer] [--threads N]
+//                   [--only TEXT]             only the cases whose name contains TEXT (for a
+//                                             profiler; the projected stage times need all)
 //   ropes_crl_bench --run RUN [--threads N]   the Estimator of a trained run: one frame's
 //                                             latency and heap allocations per frame
 //
@@ -321,7 +323,7 @@ std::int64_t count_argument(const char* flag, const char* value) {
 int usage() {
   std::fprintf(stderr,
                "usage: ropes_crl_bench [--config NAME|PATH] [--anchors N] [--quick] [--no-peer]\n"
-               "                       [--threads N]\n"
+               "                       [--threads N] [--only TEXT]\n"
                "       ropes_crl_bench --run RUN [--threads N]\n");
   return 2;
 }
@@ -331,7 +333,7 @@ int usage() {
 int main(int argc, char** argv) {
   bool quick = false, peer_wanted = true;
   int threads = 2;
-  std::string config_name = "1c-small", run;
+  std::string config_name = "1c-small", run, only;
   std::int64_t anchors = 0;
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--quick")) {
@@ -349,6 +351,8 @@ int main(int argc, char** argv) {
       anchors = count_argument("--anchors", argv[++i]);
       if (anchors < 1)
         return 2;
+    } else if (!std::strcmp(argv[i], "--only") && i + 1 < argc) {
+      only = argv[++i];
     } else if (!std::strcmp(argv[i], "--run") && i + 1 < argc) {
       run = argv[++i];
     } else {
@@ -406,6 +410,18 @@ int main(int argc, char** argv) {
   const std::int64_t paper_micro = paper.ae1_training.micro_batch;
   cases.push_back(ae1_train(paper.name + "_ae1_train", paper.ae1, paper_micro, quick ? 1 : 2));
 
+  if (!only.empty()) {
+    std::vector<Case> chosen;
+    for (Case& c : cases)
+      if (c.peer["name"].get<std::string>().find(only) != std::string::npos)
+        chosen.push_back(std::move(c));
+    if (chosen.empty()) {
+      std::fprintf(stderr, "ropes_crl_bench: --only %s: no case's name contains it\n",
+                   only.c_str());
+      return 2;
+    }
+    cases = std::move(chosen);
+  }
   std::map<std::string, double> peer;
   if (peer_wanted) {
     const std::filesystem::path file = std::filesystem::temp_directory_path() /
@@ -418,13 +434,15 @@ int main(int argc, char** argv) {
 
   std::map<std::string, double> ours;
   for (std::size_t i = 0; i < cases.size(); ++i) {
-    if (i == 0)
+    // the group headings, where every case runs (--only keeps some)
+    const bool headings = only.empty();
+    if (headings && i == 0)
       std::printf(
           "-- the appendix's networks (AE1 128x128x1 batch 32, LDR and AE2 8x8x2 batch "
           "64, AE2 loss mse + ||E|J_g^T v| - e||^2)\n");
-    if (i == appendix_cases)
+    if (headings && i == appendix_cases)
       std::printf("-- the stages of %s\n", config.name.c_str());
-    if (i == config_cases)
+    if (headings && i == config_cases)
       std::printf(
           "-- %s: AE1 at the appendix's width, one micro-batch of %lld of its %lld-image "
           "step\n",
@@ -454,6 +472,8 @@ int main(int argc, char** argv) {
                       extra);
   }
 
+  if (!only.empty())
+    return 0;
   // the stage wall times these rates imply for one training run of `config`
   const std::int64_t joints = static_cast<std::int64_t>(config.joints.size());
   const std::int64_t dataset_anchors = anchors > 0 ? anchors : small_anchors(config.cameras);
