@@ -56,20 +56,26 @@ void im2col(const float* x, const ConvGeometry& g, float* col, std::int64_t ld, 
           float* out = row + oy * g.ow;
           const std::int64_t iy = oy * g.stride - g.top + ki;
           if (iy < 0 || iy >= g.h) {
-            std::fill(out + first, out + last, 0.0f);
+            for (std::int64_t ox = first; ox < last; ++ox)
+              out[ox] = 0.0f;
             continue;
           }
           const std::int64_t b = std::clamp(in_begin, first, last);
           const std::int64_t e = std::clamp(in_end, b, last);
           const float* in = x + (ch * g.h + iy) * g.w + offset;
-          std::fill(out + first, out + b, 0.0f);
+          // plain loops: the runs are an image row or less, too short for memset and memcpy
+          // to pay for their calls
+          for (std::int64_t ox = first; ox < b; ++ox)
+            out[ox] = 0.0f;
           if (g.stride == 1) {
-            std::copy(in + b, in + e, out + b);
+            for (std::int64_t ox = b; ox < e; ++ox)
+              out[ox] = in[ox];
           } else {
             for (std::int64_t ox = b; ox < e; ++ox)
               out[ox] = in[ox * g.stride];
           }
-          std::fill(out + e, out + last, 0.0f);
+          for (std::int64_t ox = e; ox < last; ++ox)
+            out[ox] = 0.0f;
         }
       }
   }

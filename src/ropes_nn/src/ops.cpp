@@ -110,10 +110,29 @@ Buffer broadcast_apply(const Tensor& a, const Tensor& b, const Shape& out, F f) 
     });
     return r;
   }
-  // general case: rows of the innermost axis, split over threads by row
   const Dims4 od = align4(out);
   const Dims4 sa = broadcast_strides(align4(a.shape()), od);
   const Dims4 sb = broadcast_strides(align4(b.shape()), od);
+  if (a.shape() == out && sb[2] == 0 && sb[3] == 0) {
+    // b constant over the last two axes (a channel bias): planes of od[2] * od[3] elements
+    const std::int64_t plane = od[2] * od[3];
+    const auto planes = [&](std::int64_t begin, std::int64_t end) {
+      for (std::int64_t q = begin; q < end; ++q) {
+        const float vb = pb[q / od[1] * sb[0] + q % od[1] * sb[1]];
+        const float* ra = pa + q * plane;
+        float* rr = pr + q * plane;
+        for (std::int64_t i = 0; i < plane; ++i)
+          rr[i] = f(ra[i], vb);
+      }
+    };
+    if (n < kParallelElements)
+      planes(0, od[0] * od[1]);
+    else
+      parallel_for(od[0] * od[1],
+                   [&](int, std::int64_t begin, std::int64_t end) { planes(begin, end); });
+    return r;
+  }
+  // general case: rows of the innermost axis, split over threads by row
   const std::int64_t rows = od[0] * od[1] * od[2];
   const auto run = [&](std::int64_t begin, std::int64_t end) {
     for (std::int64_t row = begin; row < end; ++row) {
