@@ -135,6 +135,39 @@ void gemm_tile(const GemmBlocking& whole, const float* a, bool a_transposed, std
   block_of_product(p, 0, m, 0, n);
 }
 
+GemmSharedA::GemmSharedA(const GemmBlocking& whole, const float* a, bool a_transposed,
+                         std::int64_t lda, std::int64_t m, std::int64_t k)
+    : whole_(whole), a_(a), a_transposed_(a_transposed), lda_(lda), m_(m), k_(k) {
+  thread_local Buffer packed;
+  GemmProduct p{a,        a_transposed, nullptr,  false, nullptr, m, k,       0,      false,
+                whole.kc, whole.mc,     whole.nc, lda,   0,       0, nullptr, nullptr};
+  p.block_b = at_least(packed, static_cast<std::size_t>(whole.kc * whole.nc));
+  if (m > 0 && k > 0 && gemm_kernels().pack_a(p))
+    packed_ = p.block_b;
+}
+
+void GemmSharedA::multiply(const float* b, std::int64_t ldb, float* c, std::int64_t ldc,
+                           std::int64_t n, bool accumulate) {
+  if (packed_ == nullptr) {
+    gemm_tile(whole_, a_, a_transposed_, lda_, b, false, ldb, c, ldc, m_, k_, n, accumulate);
+    return;
+  }
+  if (n == 0)
+    return;
+  thread_local Buffer block_a;
+  const GemmProduct p{
+      a_,         a_transposed_,
+      b,          false,
+      c,          m_,
+      k_,         n,
+      accumulate, whole_.kc,
+      whole_.mc,  whole_.nc,
+      lda_,       ldb,
+      ldc,        at_least(block_a, static_cast<std::size_t>(whole_.kc * whole_.mc)),
+      packed_};
+  gemm_kernels().with_packed_a(p);
+}
+
 void gemm(const float* a, bool a_transposed, const float* b, bool b_transposed, float* c,
           std::int64_t m, std::int64_t k, std::int64_t n, bool accumulate) {
   if (m == 0 || n == 0)

@@ -60,6 +60,28 @@ void gemm_tile(const GemmBlocking& whole, const float* a, bool a_transposed, std
                const float* b, bool b_transposed, std::int64_t ldb, float* c, std::int64_t ldc,
                std::int64_t m, std::int64_t k, std::int64_t n, bool accumulate);
 
+// Several products with one op(a) (a convolution's weights, each image or tile its own b and
+// c): op(a) is packed once, on the calling thread, when it fits one block of the whole
+// product's blocking (k <= kc, m <= nc); each multiply() then gets the bits gemm_tile gives
+// (and is gemm_tile where op(a) does not fit). Used by one thread; not copyable.
+class GemmSharedA {
+ public:
+  GemmSharedA(const GemmBlocking& whole, const float* a, bool a_transposed, std::int64_t lda,
+              std::int64_t m, std::int64_t k);
+  GemmSharedA(const GemmSharedA&) = delete;
+  GemmSharedA& operator=(const GemmSharedA&) = delete;
+  // c [m, n] (+)= op(a) * b [k, n], b not transposed, row strides ldb and ldc
+  void multiply(const float* b, std::int64_t ldb, float* c, std::int64_t ldc, std::int64_t n,
+                bool accumulate);
+
+ private:
+  GemmBlocking whole_;
+  const float* a_;
+  bool a_transposed_;
+  std::int64_t lda_, m_, k_;
+  float* packed_ = nullptr;  // this thread's packed op(a), or null where it did not fit
+};
+
 // The blocking reference: the cache sizes Eigen 3.4 queries on the AMD Zen 5 machine the
 // workspace's tables were measured on (L1d 48 KiB, L2 1 MiB; L3 only needs to be non-zero).
 constexpr CacheSizes kReferenceCaches{49152, 1048576, 532676608};

@@ -92,6 +92,66 @@ void block(const GemmProduct& p, std::int64_t r0, std::int64_t r1, std::int64_t 
     run_block<kCol, kCol>(p, r0, r1, c0, c1);
 }
 
+// What Kernel<LhsOrder, kRow>::run does for a product whose op(a) fits one (kc, nc) block
+// (Eigen/src/Core/products/GeneralMatrixMatrix.h, the sequential loop: one k2 and one j2
+// block, then pack_lhs and gebp for each mc block of its rows), with op(a) packed apart.
+// Row-major c = op(a) b is Eigen's column-major c^T = b^T op(a)^T: its lhs is b, its rhs op(a).
+template <int LhsOrder>
+struct PackedA {
+  static constexpr int kRhsOrder = LhsOrder == Eigen::RowMajor ? Eigen::ColMajor : Eigen::RowMajor;
+  using Traits = Eigen::internal::gebp_traits<float, float>;
+  using LhsMapper = Eigen::internal::const_blas_data_mapper<float, Index, Eigen::ColMajor>;
+  using RhsMapper = Eigen::internal::const_blas_data_mapper<float, Index, kRhsOrder>;
+  using ResMapper =
+      Eigen::internal::blas_data_mapper<float, Index, Eigen::ColMajor, Eigen::Unaligned, 1>;
+
+  static bool fits(const GemmProduct& p) { return p.k <= p.kc && p.m <= p.nc; }
+
+  static void pack(const GemmProduct& p) {
+    Eigen::internal::gemm_pack_rhs<float, Index, RhsMapper, Traits::nr, kRhsOrder> pack_rhs;
+    pack_rhs(p.block_b, RhsMapper(p.a, p.lda).getSubMapper(0, 0), p.k, p.m);
+  }
+
+  static void run(const GemmProduct& p) {
+    Eigen::internal::gemm_pack_lhs<float, Index, LhsMapper, Traits::mr, Traits::LhsProgress,
+                                   typename Traits::LhsPacket4Packing, Eigen::ColMajor>
+        pack_lhs;
+    Eigen::internal::gebp_kernel<float, float, Index, ResMapper, Traits::mr, Traits::nr, false,
+                                 false>
+        gebp;
+    if (!p.accumulate) {
+      for (Index r = 0; r < p.m; ++r)
+        for (float* c = p.c + r * p.ldc; c != p.c + r * p.ldc + p.n; ++c)
+          *c = 0.0f;
+    }
+    const LhsMapper lhs(p.b, p.ldb);
+    const ResMapper res(p.c, p.ldc, 1);
+    const Index mc = p.n < p.mc ? p.n : p.mc;
+    for (Index i2 = 0; i2 < p.n; i2 += mc) {
+      const Index actual_mc = (i2 + mc < p.n ? i2 + mc : p.n) - i2;
+      pack_lhs(p.block_a, lhs.getSubMapper(i2, 0), p.k, actual_mc);
+      gebp(res.getSubMapper(i2, 0), p.block_a, p.block_b, actual_mc, p.k, p.m, 1.0f);
+    }
+  }
+};
+
+bool pack_a(const GemmProduct& p) {
+  if (p.a_transposed ? !PackedA<Eigen::ColMajor>::fits(p) : !PackedA<Eigen::RowMajor>::fits(p))
+    return false;
+  if (p.a_transposed)
+    PackedA<Eigen::ColMajor>::pack(p);
+  else
+    PackedA<Eigen::RowMajor>::pack(p);
+  return true;
+}
+
+void with_packed_a(const GemmProduct& p) {
+  if (p.a_transposed)
+    PackedA<Eigen::ColMajor>::run(p);
+  else
+    PackedA<Eigen::RowMajor>::run(p);
+}
+
 template <typename Lhs, typename Rhs>
 void small_product(const Lhs& a, const Rhs& b, float* c, Index m, Index n, bool accumulate) {
   Eigen::Map<RowMajor> cm(c, m, n);
@@ -192,7 +252,8 @@ void eigen_blocking(const CacheSizes& caches, std::int64_t& k, std::int64_t& m, 
 }  // namespace
 
 extern const GemmKernels kGemm;
-const GemmKernels kGemm{ROPES_KERNEL_LEVEL, &block,          &small,
-                        &blocking,          &eigen_blocking, &set_eigen_caches};
+const GemmKernels kGemm{ROPES_KERNEL_LEVEL, &block,           &pack_a,
+                        &with_packed_a,     &small,           &blocking,
+                        &eigen_blocking,    &set_eigen_caches};
 
 }  // namespace ropes::nn::ROPES_KERNEL_NS

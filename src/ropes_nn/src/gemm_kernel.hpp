@@ -39,6 +39,12 @@ struct GemmKernels {
   // when rows start at multiples of 16 and columns at multiples of mc (gemm.hpp)
   void (*block)(const GemmProduct& p, std::int64_t row_begin, std::int64_t row_end,
                 std::int64_t col_begin, std::int64_t col_end);
+  // op(a) packed once into p.block_b for products that share it (several images' b and c
+  // with one a), where it fits one block (k <= kc, m <= nc); false (nothing packed) otherwise
+  bool (*pack_a)(const GemmProduct& p);
+  // all rows and columns of c (+)= op(a) op(b) with op(a) already packed by pack_a: the bits
+  // of block(p, 0, m, 0, n); b must not be transposed
+  void (*with_packed_a)(const GemmProduct& p);
   // a tiny or vector-shaped product, whole (Eigen's coefficient-wise or GEMV expression)
   void (*small)(const GemmProduct& p);
   // Eigen 3.4's one-thread blocking heuristic at `caches` (gemm.hpp's reference_blocking)

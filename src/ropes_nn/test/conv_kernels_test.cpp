@@ -41,12 +41,14 @@ std::vector<float> values(const Buffer& b) {
 
 // AE1's layers at x1/8 (8 channels at 128x128, stride-2 down to 64x64), a batch of one (the
 // latency path) and of three, a 5x5 VALID and an uneven explicit padding, a 1x1 convolution,
-// and one product too small for the blocked kernel (one output channel)
+// one product too small for the blocked kernel (one output channel), an LDR layer (6x6 VALID,
+// one tile an image: the weights packed once for many) and weights too deep to pack once
 const Case kCases[] = {
     {3, 8, 128, 128, 8, 3, 1, 1, 1, 1, 1}, {1, 8, 128, 128, 16, 3, 1, 1, 1, 1, 1},
     {2, 8, 128, 128, 8, 3, 2, 0, 0, 1, 1}, {2, 3, 37, 45, 5, 5, 1, 0, 0, 0, 0},
     {2, 4, 40, 33, 6, 3, 2, 2, 0, 1, 3},   {2, 16, 30, 30, 12, 1, 1, 0, 0, 0, 0},
     {2, 1, 128, 128, 8, 3, 1, 1, 1, 1, 1}, {2, 8, 20, 20, 1, 3, 1, 1, 1, 1, 1},
+    {17, 32, 6, 6, 64, 3, 1, 0, 0, 0, 0},  {9, 130, 10, 10, 40, 3, 1, 1, 1, 1, 1},
 };
 
 TEST(ConvKernels, TilesGiveTheWholeImagesBitsAtEveryThreadCount) {
