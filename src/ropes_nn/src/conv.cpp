@@ -215,10 +215,11 @@ Buffer conv_weight_grad(const float* x, const float* gy, const ConvGeometry& g, 
   const bool whole = tiling == ConvTiling::kWholeImages || !gemm_is_blocked(m, k, n);
   const GemmBlocking blocking = whole ? GemmBlocking{k, n, m} : gemm_blocking(m, k, n);
   const std::int64_t tile = whole ? k : blocking.kc, tiles = tiles_of(k, tile);
-  std::vector<Buffer> partial(static_cast<std::size_t>(reduction_blocks(g.n)),
-                              Buffer(w_size, 0.0f));
+  // each block's partial sum is made (zeroed) by the thread that computes it
+  std::vector<Buffer> partial(static_cast<std::size_t>(reduction_blocks(g.n)));
   for_each_reduction_block(g.n, [&](int block, std::int64_t begin, std::int64_t end) {
     Buffer col(static_cast<std::size_t>(n * std::min(tile, k)));
+    partial[static_cast<std::size_t>(block)] = Buffer(w_size, 0.0f);
     float* dw = partial[static_cast<std::size_t>(block)].data();
     for (std::int64_t i = begin; i < end; ++i) {
       if (whole) {
@@ -234,10 +235,20 @@ Buffer conv_weight_grad(const float* x, const float* gy, const ConvGeometry& g, 
       }
     }
   });
-  for (std::size_t c = 1; c < partial.size(); ++c) {
-    for (std::size_t j = 0; j < w_size; ++j)
-      partial[0][j] += partial[c][j];
-  }
+  // the blocks added in order, element by element (the elements split over threads)
+  float* total = partial[0].data();
+  const auto add_blocks = [&](std::int64_t begin, std::int64_t end) {
+    for (std::size_t c = 1; c < partial.size(); ++c) {
+      const float* part = partial[c].data();
+      for (std::int64_t j = begin; j < end; ++j)
+        total[j] += part[j];
+    }
+  };
+  const std::int64_t size = static_cast<std::int64_t>(w_size);
+  if (size * static_cast<std::int64_t>(partial.size()) < (1 << 16))
+    add_blocks(0, size);
+  else
+    parallel_for(size, [&](int, std::int64_t begin, std::int64_t end) { add_blocks(begin, end); });
   return std::move(partial[0]);
 }
 

@@ -141,7 +141,7 @@ GemmSharedA::GemmSharedA(const GemmBlocking& whole, const float* a, bool a_trans
   thread_local Buffer packed;
   GemmProduct p{a,        a_transposed, nullptr,  false, nullptr, m, k,       0,      false,
                 whole.kc, whole.mc,     whole.nc, lda,   0,       0, nullptr, nullptr};
-  p.block_b = at_least(packed, static_cast<std::size_t>(whole.kc * whole.nc));
+  p.block_b = at_least(packed, static_cast<std::size_t>(std::max<std::int64_t>(k * m, 1)));
   if (m > 0 && k > 0 && gemm_kernels().pack_a(p))
     packed_ = p.block_b;
 }

@@ -61,9 +61,9 @@ void gemm_tile(const GemmBlocking& whole, const float* a, bool a_transposed, std
                std::int64_t m, std::int64_t k, std::int64_t n, bool accumulate);
 
 // Several products with one op(a) (a convolution's weights, each image or tile its own b and
-// c): op(a) is packed once, on the calling thread, when it fits one block of the whole
-// product's blocking (k <= kc, m <= nc); each multiply() then gets the bits gemm_tile gives
-// (and is gemm_tile where op(a) does not fit). Used by one thread; not copyable.
+// c): op(a) is packed once, on the calling thread, when its sum fits one block of the whole
+// product's blocking (k <= kc); each multiply() then gets the bits gemm_tile gives (and is
+// gemm_tile where it does not fit). One at a time on a thread; not copyable.
 class GemmSharedA {
  public:
   GemmSharedA(const GemmBlocking& whole, const float* a, bool a_transposed, std::int64_t lda,

@@ -92,10 +92,11 @@ void block(const GemmProduct& p, std::int64_t r0, std::int64_t r1, std::int64_t 
     run_block<kCol, kCol>(p, r0, r1, c0, c1);
 }
 
-// What Kernel<LhsOrder, kRow>::run does for a product whose op(a) fits one (kc, nc) block
-// (Eigen/src/Core/products/GeneralMatrixMatrix.h, the sequential loop: one k2 and one j2
-// block, then pack_lhs and gebp for each mc block of its rows), with op(a) packed apart.
-// Row-major c = op(a) b is Eigen's column-major c^T = b^T op(a)^T: its lhs is b, its rhs op(a).
+// What Kernel<LhsOrder, kRow>::run does for a product whose sum over k fits one kc block
+// (Eigen/src/Core/products/GeneralMatrixMatrix.h, the sequential loop with one k2 block: for
+// each mc block of its rows pack_lhs, then gebp against each nc block of op(a)), with the nc
+// blocks of op(a) packed apart, one after another. Row-major c = op(a) b is Eigen's
+// column-major c^T = b^T op(a)^T: its lhs is b, its rhs op(a).
 template <int LhsOrder>
 struct PackedA {
   static constexpr int kRhsOrder = LhsOrder == Eigen::RowMajor ? Eigen::ColMajor : Eigen::RowMajor;
@@ -105,11 +106,16 @@ struct PackedA {
   using ResMapper =
       Eigen::internal::blas_data_mapper<float, Index, Eigen::ColMajor, Eigen::Unaligned, 1>;
 
-  static bool fits(const GemmProduct& p) { return p.k <= p.kc && p.m <= p.nc; }
+  static bool fits(const GemmProduct& p) { return p.k <= p.kc; }
+  static Index nc(const GemmProduct& p) { return p.m < p.nc ? p.m : p.nc; }
 
+  // op(a)'s nc blocks at block_b + j2 * k (k * m floats in all)
   static void pack(const GemmProduct& p) {
     Eigen::internal::gemm_pack_rhs<float, Index, RhsMapper, Traits::nr, kRhsOrder> pack_rhs;
-    pack_rhs(p.block_b, RhsMapper(p.a, p.lda).getSubMapper(0, 0), p.k, p.m);
+    const RhsMapper rhs(p.a, p.lda);
+    for (Index j2 = 0; j2 < p.m; j2 += nc(p))
+      pack_rhs(p.block_b + j2 * p.k, rhs.getSubMapper(0, j2), p.k,
+               (j2 + nc(p) < p.m ? j2 + nc(p) : p.m) - j2);
   }
 
   static void run(const GemmProduct& p) {
@@ -130,7 +136,9 @@ struct PackedA {
     for (Index i2 = 0; i2 < p.n; i2 += mc) {
       const Index actual_mc = (i2 + mc < p.n ? i2 + mc : p.n) - i2;
       pack_lhs(p.block_a, lhs.getSubMapper(i2, 0), p.k, actual_mc);
-      gebp(res.getSubMapper(i2, 0), p.block_a, p.block_b, actual_mc, p.k, p.m, 1.0f);
+      for (Index j2 = 0; j2 < p.m; j2 += nc(p))
+        gebp(res.getSubMapper(i2, j2), p.block_a, p.block_b + j2 * p.k, actual_mc, p.k,
+             (j2 + nc(p) < p.m ? j2 + nc(p) : p.m) - j2, 1.0f);
     }
   }
 };

@@ -39,8 +39,9 @@ struct GemmKernels {
   // when rows start at multiples of 16 and columns at multiples of mc (gemm.hpp)
   void (*block)(const GemmProduct& p, std::int64_t row_begin, std::int64_t row_end,
                 std::int64_t col_begin, std::int64_t col_end);
-  // op(a) packed once into p.block_b for products that share it (several images' b and c
-  // with one a), where it fits one block (k <= kc, m <= nc); false (nothing packed) otherwise
+  // op(a) packed once into p.block_b (k * m floats) for products that share it (several
+  // images' b and c with one a), where its sum fits one block (k <= kc); false (nothing
+  // packed) otherwise
   bool (*pack_a)(const GemmProduct& p);
   // all rows and columns of c (+)= op(a) op(b) with op(a) already packed by pack_a: the bits
   // of block(p, 0, m, 0, n); b must not be transposed
