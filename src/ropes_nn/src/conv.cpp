@@ -137,7 +137,8 @@ std::int64_t tiles_of(std::int64_t size, std::int64_t tile) {
 // y_i [o, pixels] = w [o, patch] * col_i [patch, pixels], a tile of columns at a time. The
 // threads take contiguous runs of (image, tile) pairs, so one image's tiles are shared when
 // the images are fewer than the threads (one frame's latency).
-Buffer conv_forward(const float* x, const float* w, const ConvGeometry& g, ConvTiling tiling) {
+Buffer conv_forward(const float* x, const float* w, const ConvGeometry& g, ConvTiling tiling,
+                    const float* bias) {
   count_flops(g);
   Buffer y(static_cast<std::size_t>(g.y_shape().numel()));
   const std::int64_t m = g.o, k = g.patch(), n = g.pixels(), image = g.c * g.h * g.w;
@@ -150,7 +151,13 @@ Buffer conv_forward(const float* x, const float* w, const ConvGeometry& g, ConvT
       Buffer col(static_cast<std::size_t>(k * n));
       for (std::int64_t i = begin; i < end; ++i) {
         im2col(x + i * image, g, col.data(), n, 0, n);
-        gemm(w, col.data(), y.data() + i * m * n, m, k, n);
+        float* yi = y.data() + i * m * n;
+        gemm(w, col.data(), yi, m, k, n);
+        if (bias != nullptr) {
+          for (std::int64_t r = 0; r < m; ++r)
+            for (std::int64_t j = 0; j < n; ++j)
+              yi[r * n + j] = yi[r * n + j] + bias[r];
+        }
       }
     });
     return y;
@@ -161,7 +168,11 @@ Buffer conv_forward(const float* x, const float* w, const ConvGeometry& g, ConvT
     for (std::int64_t item = begin; item < end; ++item) {
       const std::int64_t i = item / tiles, p0 = item % tiles * tile, p1 = std::min(p0 + tile, n);
       im2col(x + i * image, g, col.data(), p1 - p0, p0, p1);
-      weights.multiply(col.data(), p1 - p0, y.data() + i * m * n + p0, n, p1 - p0, false);
+      float* yi = y.data() + i * m * n + p0;
+      if (bias != nullptr)
+        weights.multiply_onto(bias, col.data(), p1 - p0, yi, n, p1 - p0);
+      else
+        weights.multiply(col.data(), p1 - p0, yi, n, p1 - p0, false);
     }
   });
   return y;
@@ -378,7 +389,30 @@ void reset_flop_count() {
   g_flops = 0;
 }
 
+namespace {
+ConvGeometry conv2d_geometry(const Tensor& x, const Tensor& w, int stride,
+                             const Padding2d& padding);
+}  // namespace
+
 Tensor conv2d(const Tensor& x, const Tensor& w, int stride, const Padding2d& padding) {
+  return conv_op(x, w, conv2d_geometry(x, w, stride, padding));
+}
+
+Tensor conv2d(const Tensor& x, const Tensor& w, const Tensor& b, int stride,
+              const Padding2d& padding) {
+  const ConvGeometry g = conv2d_geometry(x, w, stride, padding);
+  if (!b.defined() || b.shape() != Shape{g.o}) {
+    fail("conv2d", "bias " + (b.defined() ? b.shape().str() : std::string("undefined")) +
+                       "; expected [" + std::to_string(g.o) + "] for w " + w.shape().str());
+  }
+  if (needs_graph({x, w, b}))
+    return add(conv_op(x, w, g), reshape(b, Shape{1, g.o, 1, 1}));
+  return Tensor(g.y_shape(), conv_forward(x.data(), w.data(), g, ConvTiling::kTiles, b.data()));
+}
+
+namespace {
+ConvGeometry conv2d_geometry(const Tensor& x, const Tensor& w, int stride,
+                             const Padding2d& padding) {
   if (!x.defined() || !w.defined())
     fail("conv2d", "undefined input");
   if (x.rank() != 4 || w.rank() != 4 || x.shape()[1] != w.shape()[1]) {
@@ -405,8 +439,9 @@ Tensor conv2d(const Tensor& x, const Tensor& w, int stride, const Padding2d& pad
     fail("conv2d", "a " + std::to_string(g.kh) + "x" + std::to_string(g.kw) +
                        " kernel leaves no output on x " + x.shape().str());
   }
-  return conv_op(x, w, g);
+  return g;
 }
+}  // namespace
 
 Tensor conv_transpose2d(const Tensor& x, const Tensor& w, int stride, const Padding2d& padding) {
   if (!x.defined() || !w.defined())

@@ -26,9 +26,10 @@ struct ConvGeometry {
 
 enum class ConvTiling { kTiles, kWholeImages };
 
-// y = conv(x, w) [n, o, oh, ow]
+// y = conv(x, w) [n, o, oh, ow], plus bias[o] on channel o where bias is given (the same
+// bits as adding it to the product after)
 Buffer conv_forward(const float* x, const float* w, const ConvGeometry& g,
-                    ConvTiling tiling = ConvTiling::kTiles);
+                    ConvTiling tiling = ConvTiling::kTiles, const float* bias = nullptr);
 // dx [n, c, h, w] from gy [n, o, oh, ow]: the adjoint in x (conv_transpose2d's forward)
 Buffer conv_input_grad(const float* gy, const float* w, const ConvGeometry& g,
                        ConvTiling tiling = ConvTiling::kTiles);

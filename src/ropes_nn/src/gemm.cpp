@@ -135,6 +135,21 @@ void gemm_tile(const GemmBlocking& whole, const float* a, bool a_transposed, std
   block_of_product(p, 0, m, 0, n);
 }
 
+void GemmSharedA::multiply_onto(const float* start, const float* b, std::int64_t ldb, float* c,
+                                std::int64_t ldc, std::int64_t n) {
+  if (packed_ == nullptr) {
+    // a sum over several k blocks: the product, then the addition
+    multiply(b, ldb, c, ldc, n, false);
+    for (std::int64_t r = 0; r < m_; ++r)
+      for (std::int64_t j = 0; j < n; ++j)
+        c[r * ldc + j] = c[r * ldc + j] + start[r];
+    return;
+  }
+  for (std::int64_t r = 0; r < m_; ++r)
+    std::fill(c + r * ldc, c + r * ldc + n, start[r]);
+  multiply(b, ldb, c, ldc, n, true);
+}
+
 GemmSharedA::GemmSharedA(const GemmBlocking& whole, const float* a, bool a_transposed,
                          std::int64_t lda, std::int64_t m, std::int64_t k)
     : whole_(whole), a_(a), a_transposed_(a_transposed), lda_(lda), m_(m), k_(k) {

@@ -73,6 +73,12 @@ class GemmSharedA {
   // c [m, n] (+)= op(a) * b [k, n], b not transposed, row strides ldb and ldc
   void multiply(const float* b, std::int64_t ldb, float* c, std::int64_t ldc, std::int64_t n,
                 bool accumulate);
+  // c [m, n] = op(a) * b + start[r] on each row r: the bits of the product followed by
+  // adding start[r] to each element of row r (the sum over k is one block: every element is
+  // one accumulated sum added to what c holds, so starting from start[r] instead of 0 is the
+  // same addition)
+  void multiply_onto(const float* start, const float* b, std::int64_t ldb, float* c,
+                     std::int64_t ldc, std::int64_t n);
 
  private:
   GemmBlocking whole_;

@@ -10,6 +10,7 @@
 
 #include "conv_kernels.hpp"
 #include "ropes_core/philox.hpp"
+#include "ropes_nn/ops.hpp"
 #include "ropes_nn/parallel.hpp"
 
 namespace ropes::nn {
@@ -73,6 +74,33 @@ TEST(ConvKernels, TilesGiveTheWholeImagesBitsAtEveryThreadCount) {
     }
   }
   set_num_threads(saved);
+}
+
+// conv2d with a bias, where no graph is recorded, starts each output's sum at the bias; the
+// witness is the product with the bias added after (what the graph records), bit for bit
+TEST(ConvKernels, ABiasInTheProductIsTheBiasAddedAfter) {
+  const int saved = num_threads();
+  for (const Case& c : kCases) {
+    const ConvGeometry g = geometry(c);
+    const Tensor x(g.x_shape(), normals(g.x_shape().numel(), 1));
+    const Tensor w(g.w_shape(), normals(g.w_shape().numel(), 2));
+    const Tensor b(Shape{g.o}, normals(g.o, 3));
+    const Padding2d pads = Padding2d::explicit_pads(c.top, c.bottom, c.left, c.right);
+    for (int threads : {1, 2}) {
+      set_num_threads(threads);
+      const Tensor after = add(conv2d(x, w, c.stride, pads), reshape(b, Shape{1, g.o, 1, 1}));
+      const Tensor fused = conv2d(x, w, b, c.stride, pads);
+      EXPECT_EQ(std::vector<float>(fused.data(), fused.data() + fused.numel()),
+                std::vector<float>(after.data(), after.data() + after.numel()))
+          << "x " << g.x_shape().str() << " w " << g.w_shape().str() << " at " << threads
+          << " thread(s)";
+    }
+  }
+  set_num_threads(saved);
+  EXPECT_THROW(conv2d(Tensor(Shape{1, 2, 4, 4}, std::vector<float>(32)),
+                      Tensor(Shape{3, 2, 3, 3}, std::vector<float>(54)),
+                      Tensor(Shape{2}, std::vector<float>(2))),
+               std::invalid_argument);
 }
 
 }  // namespace

@@ -98,6 +98,11 @@ struct Padding2d {
 /// mismatched channels, a stride < 1, negative padding, or an empty output.
 Tensor conv2d(const Tensor& x, const Tensor& w, int stride = 1,
               const Padding2d& padding = Padding2d::same());
+/// conv2d then add(y, reshape(b, {1, O, 1, 1})), b: [O]: the same values and graph. Where no
+/// graph is recorded (inference) the bias is where each output starts its sum, which saves
+/// a pass over y and gives the same bits.
+Tensor conv2d(const Tensor& x, const Tensor& w, const Tensor& b, int stride = 1,
+              const Padding2d& padding = Padding2d::same());
 
 /// The transpose (adjoint) of conv2d with the same kernel, stride and padding: what a
 /// decoder uses to upsample. x: [N, Cin, H, W], w: [Cin, Cout, KH, KW] (PyTorch's

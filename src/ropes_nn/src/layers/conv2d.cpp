@@ -21,7 +21,9 @@ Conv2d::Conv2d(std::int64_t in_channels, std::int64_t out_channels, std::int64_t
 }
 
 Tensor Conv2d::forward(const Tensor& x) {
-  return layer_checks::add_channel_bias(conv2d(x, weight_, stride_, padding_), bias_);
+  // with a bias, conv2d adds it (in the product, where no graph is recorded)
+  return bias_.defined() ? conv2d(x, weight_, bias_, stride_, padding_)
+                         : conv2d(x, weight_, stride_, padding_);
 }
 
 }  // namespace ropes::nn
