@@ -145,12 +145,21 @@ Buffer conv_forward(const float* x, const float* w, const ConvGeometry& g, ConvT
   const bool blocked = tiling == ConvTiling::kTiles && gemm_is_blocked(m, k, n);
   const GemmBlocking blocking = blocked ? gemm_blocking(m, k, n) : GemmBlocking{k, n, m};
   const std::int64_t tile = blocking.mc, tiles = tiles_of(n, tile);
-  // fewer tiles than threads: the whole-image product, whose rows gemm() shares out
+  // fewer tiles than threads: the whole-image product, whose rows (or columns) gemm()
+  // shares out, and whose im2col the threads share by columns
+  const bool share_images = g.n < num_threads() && !omp_in_parallel();
   if (!blocked || (g.n * tiles < num_threads() && !omp_in_parallel())) {
     parallel_for(g.n, [&](int, std::int64_t begin, std::int64_t end) {
       Buffer col(static_cast<std::size_t>(k * n));
       for (std::int64_t i = begin; i < end; ++i) {
-        im2col(x + i * image, g, col.data(), n, 0, n);
+        const float* xi = x + i * image;
+        if (share_images) {
+          parallel_for(n, [&](int, std::int64_t p0, std::int64_t p1) {
+            im2col(xi, g, col.data() + p0, n, p0, p1);
+          });
+        } else {
+          im2col(xi, g, col.data(), n, 0, n);
+        }
         float* yi = y.data() + i * m * n;
         gemm(w, col.data(), yi, m, k, n);
         if (bias != nullptr) {
