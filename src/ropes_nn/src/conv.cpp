@@ -48,38 +48,43 @@ void im2col(const float* x, const ConvGeometry& g, float* col, std::int64_t ld, 
     const std::int64_t offset = kj - g.left;
     for (std::int64_t ch = 0; ch < g.c; ++ch)
       for (std::int64_t ki = 0; ki < g.kh; ++ki) {
-        float* row = col + ((ch * g.kh + ki) * g.kw + kj) * ld - p0;
+        // column P of this patch row is col[row + P]
+        const std::int64_t row = ((ch * g.kh + ki) * g.kw + kj) * ld - p0;
         for (std::int64_t oy = oy_first; oy <= oy_last; ++oy) {
-          // this output row's columns within [p0, p1)
+          // this output row's columns within [p0, p1), from `out`
           const std::int64_t first = std::max(oy * g.ow, p0) - oy * g.ow;
           const std::int64_t last = std::min(oy * g.ow + g.ow, p1) - oy * g.ow;
-          float* out = row + oy * g.ow;
+          float* out = col + (row + oy * g.ow + first);
           const std::int64_t iy = oy * g.stride - g.top + ki;
           if (iy < 0 || iy >= g.h) {
-            for (std::int64_t ox = first; ox < last; ++ox)
-              out[ox] = 0.0f;
+            for (std::int64_t j = 0; j < last - first; ++j)
+              out[j] = 0.0f;
             continue;
           }
           const std::int64_t b = std::clamp(in_begin, first, last);
           const std::int64_t e = std::clamp(in_end, b, last);
-          const float* in = x + (ch * g.h + iy) * g.w + offset;
           // plain loops: the runs are an image row or less, too short for memset and memcpy
           // to pay for their calls
-          for (std::int64_t ox = first; ox < b; ++ox)
-            out[ox] = 0.0f;
-          if (g.stride == 1) {
-            for (std::int64_t ox = b; ox < e; ++ox)
-              out[ox] = in[ox];
-          } else if (g.stride == 2) {
-            // a constant stride, which the compiler vectorises (even lanes of two loads)
-            for (std::int64_t ox = b; ox < e; ++ox)
-              out[ox] = in[2 * ox];
-          } else {
-            for (std::int64_t ox = b; ox < e; ++ox)
-              out[ox] = in[ox * g.stride];
+          for (std::int64_t j = 0; j < b - first; ++j)
+            out[j] = 0.0f;
+          if (e > b) {
+            // input column b * stride + offset >= 0 of row iy
+            const float* in = x + ((ch * g.h + iy) * g.w + b * g.stride + offset);
+            float* run = out + (b - first);
+            if (g.stride == 1) {
+              for (std::int64_t j = 0; j < e - b; ++j)
+                run[j] = in[j];
+            } else if (g.stride == 2) {
+              // a constant stride, which the compiler vectorises (even lanes of two loads)
+              for (std::int64_t j = 0; j < e - b; ++j)
+                run[j] = in[2 * j];
+            } else {
+              for (std::int64_t j = 0; j < e - b; ++j)
+                run[j] = in[j * g.stride];
+            }
           }
-          for (std::int64_t ox = e; ox < last; ++ox)
-            out[ox] = 0.0f;
+          for (std::int64_t j = e - first; j < last - first; ++j)
+            out[j] = 0.0f;
         }
       }
   }
@@ -100,7 +105,8 @@ void col2im(const float* col, std::int64_t ld, const ConvGeometry& g, float* x, 
         std::int64_t in_begin = 0, in_end = 0;
         inside_range(g, kj, &in_begin, &in_end);
         const std::int64_t offset = kj - g.left;
-        const float* row = col + ((ch * g.kh + ki) * g.kw + kj) * ld - p0;
+        // column P of this patch row is col[row + P]
+        const std::int64_t row = ((ch * g.kh + ki) * g.kw + kj) * ld - p0;
         for (std::int64_t oy = oy_first; oy <= oy_last; ++oy) {
           const std::int64_t iy = oy * g.stride - g.top + ki;
           if (iy < 0 || iy >= g.h)
@@ -109,14 +115,17 @@ void col2im(const float* col, std::int64_t ld, const ConvGeometry& g, float* x, 
           const std::int64_t last = std::min(oy * g.ow + g.ow, p1) - oy * g.ow;
           const std::int64_t b = std::clamp(in_begin, first, last);
           const std::int64_t e = std::clamp(in_end, b, last);
-          float* out = x + (ch * g.h + iy) * g.w + offset;
-          const float* in = row + oy * g.ow;
+          if (e <= b)
+            continue;
+          // output columns [b, e) of row oy, into input columns b * stride + offset >= 0 on
+          float* out = x + ((ch * g.h + iy) * g.w + b * g.stride + offset);
+          const float* in = col + (row + oy * g.ow + b);
           if (g.stride == 1) {
-            for (std::int64_t ox = b; ox < e; ++ox)
-              out[ox] += in[ox];
+            for (std::int64_t j = 0; j < e - b; ++j)
+              out[j] += in[j];
           } else {
-            for (std::int64_t ox = b; ox < e; ++ox)
-              out[ox * g.stride] += in[ox];
+            for (std::int64_t j = 0; j < e - b; ++j)
+              out[j * g.stride] += in[j];
           }
         }
       }
@@ -144,11 +153,12 @@ Buffer conv_forward(const float* x, const float* w, const ConvGeometry& g, ConvT
   const std::int64_t m = g.o, k = g.patch(), n = g.pixels(), image = g.c * g.h * g.w;
   const bool blocked = tiling == ConvTiling::kTiles && gemm_is_blocked(m, k, n);
   const GemmBlocking blocking = blocked ? gemm_blocking(m, k, n) : GemmBlocking{k, n, m};
-  const std::int64_t tile = blocking.mc, tiles = tiles_of(n, tile);
-  // fewer tiles than threads: the whole-image product, whose rows (or columns) gemm()
-  // shares out, and whose im2col the threads share by columns
-  const bool share_images = g.n < num_threads() && !omp_in_parallel();
-  if (!blocked || (g.n * tiles < num_threads() && !omp_in_parallel())) {
+  const std::int64_t tile = blocking.mc, tiles = blocked ? tiles_of(n, tile) : 1;
+  // one image of fewer tiles than threads, or a product too small for the blocked kernel:
+  // the whole-image product, whose rows (or columns) gemm() shares out when it is one image
+  // outside a parallel region, as is then its im2col matrix, by columns
+  const bool share_images = g.n == 1 && !omp_in_parallel();
+  if (!blocked || (share_images && tiles < num_threads())) {
     parallel_for(g.n, [&](int, std::int64_t begin, std::int64_t end) {
       Buffer col(static_cast<std::size_t>(k * n));
       for (std::int64_t i = begin; i < end; ++i) {
@@ -193,9 +203,9 @@ Buffer conv_input_grad(const float* gy, const float* w, const ConvGeometry& g, C
   count_flops(g);
   Buffer dx(static_cast<std::size_t>(g.x_shape().numel()));
   const std::int64_t m = g.patch(), k = g.o, n = g.pixels(), image = g.c * g.h * g.w;
-  // fewer images than threads: the whole-image product, whose rows gemm() shares out
+  // one image: the whole-image product, whose rows gemm() shares out
   if (tiling == ConvTiling::kWholeImages || !gemm_is_blocked(m, k, n) ||
-      (g.n < num_threads() && !omp_in_parallel())) {
+      (g.n == 1 && !omp_in_parallel())) {
     parallel_for(g.n, [&](int, std::int64_t begin, std::int64_t end) {
       Buffer col(static_cast<std::size_t>(m * n));
       for (std::int64_t i = begin; i < end; ++i) {
@@ -232,7 +242,12 @@ Buffer conv_weight_grad(const float* x, const float* gy, const ConvGeometry& g, 
   count_flops(g);
   const std::int64_t m = g.o, k = g.pixels(), n = g.patch(), image = g.c * g.h * g.w;
   const std::size_t w_size = static_cast<std::size_t>(m * n);
-  const bool whole = tiling == ConvTiling::kWholeImages || !gemm_is_blocked(m, k, n);
+  if (g.n == 0 || k == 0 || n == 0)
+    return Buffer(w_size, 0.0f);  // an empty sum
+  // one image: the whole-image product, whose rows gemm() shares out (a tile of the sum
+  // runs on one thread)
+  const bool whole = tiling == ConvTiling::kWholeImages || !gemm_is_blocked(m, k, n) ||
+                     (g.n == 1 && !omp_in_parallel());
   const GemmBlocking blocking = whole ? GemmBlocking{k, n, m} : gemm_blocking(m, k, n);
   const std::int64_t tile = whole ? k : blocking.kc, tiles = tiles_of(k, tile);
   // each block's partial sum is made (zeroed) by the thread that computes it

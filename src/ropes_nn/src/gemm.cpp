@@ -114,7 +114,7 @@ void eigen_blocking_at(const CacheSizes& caches, std::int64_t& k, std::int64_t& 
 }
 
 bool gemm_is_blocked(std::int64_t m, std::int64_t k, std::int64_t n) {
-  return m > 1 && n > 1 && k + m + n >= kCoefficientBased;
+  return m > 1 && n > 1 && k > 0 && k + m + n >= kCoefficientBased;
 }
 
 GemmBlocking gemm_blocking(std::int64_t m, std::int64_t k, std::int64_t n) {
@@ -156,8 +156,11 @@ GemmSharedA::GemmSharedA(const GemmBlocking& whole, const float* a, bool a_trans
   thread_local Buffer packed;
   GemmProduct p{a,        a_transposed, nullptr,  false, nullptr, m, k,       0,      false,
                 whole.kc, whole.mc,     whole.nc, lda,   0,       0, nullptr, nullptr};
-  p.block_b = at_least(packed, static_cast<std::size_t>(std::max<std::int64_t>(k * m, 1)));
-  if (m > 0 && k > 0 && gemm_kernels().pack_a(p))
+  // only weights whose sum fits one block are packed (and grow the buffer)
+  if (m <= 0 || k <= 0 || k > whole.kc)
+    return;
+  p.block_b = at_least(packed, static_cast<std::size_t>(k * m));
+  if (gemm_kernels().pack_a(p))
     packed_ = p.block_b;
 }
 

@@ -43,13 +43,15 @@ std::vector<float> values(const Buffer& b) {
 // AE1's layers at x1/8 (8 channels at 128x128, stride-2 down to 64x64), a batch of one (the
 // latency path) and of three, a 5x5 VALID and an uneven explicit padding, a 1x1 convolution,
 // one product too small for the blocked kernel (one output channel), an LDR layer (6x6 VALID,
-// one tile an image: the weights packed once for many) and weights too deep to pack once
+// one tile an image: the weights packed once for many), weights too deep to pack once, and one
+// small image (one tile: its whole product and im2col shared by the threads)
 const Case kCases[] = {
     {3, 8, 128, 128, 8, 3, 1, 1, 1, 1, 1}, {1, 8, 128, 128, 16, 3, 1, 1, 1, 1, 1},
     {2, 8, 128, 128, 8, 3, 2, 0, 0, 1, 1}, {2, 3, 37, 45, 5, 5, 1, 0, 0, 0, 0},
     {2, 4, 40, 33, 6, 3, 2, 2, 0, 1, 3},   {2, 16, 30, 30, 12, 1, 1, 0, 0, 0, 0},
     {2, 1, 128, 128, 8, 3, 1, 1, 1, 1, 1}, {2, 8, 20, 20, 1, 3, 1, 1, 1, 1, 1},
     {17, 32, 6, 6, 64, 3, 1, 0, 0, 0, 0},  {9, 130, 10, 10, 40, 3, 1, 1, 1, 1, 1},
+    {1, 8, 12, 12, 16, 3, 1, 1, 1, 1, 1},
 };
 
 TEST(ConvKernels, TilesGiveTheWholeImagesBitsAtEveryThreadCount) {
@@ -74,6 +76,21 @@ TEST(ConvKernels, TilesGiveTheWholeImagesBitsAtEveryThreadCount) {
     }
   }
   set_num_threads(saved);
+}
+
+// sums over nothing (no channels, no images, no output pixels) are zeros, not a crash
+TEST(ConvKernels, EmptySumsAreZeros) {
+  const std::vector<float> x(64, 1.0f), w(64, 1.0f), gy(64, 1.0f);
+  ConvGeometry no_channels{2, 0, 8, 8, 4, 3, 3, 8, 8, 1, 1, 1};
+  const Buffer y = conv_forward(x.data(), w.data(), no_channels);
+  EXPECT_EQ(values(y), std::vector<float>(2 * 4 * 8 * 8, 0.0f));
+  ConvGeometry no_images{0, 3, 8, 8, 4, 3, 3, 8, 8, 1, 1, 1};
+  EXPECT_EQ(values(conv_weight_grad(x.data(), gy.data(), no_images)),
+            std::vector<float>(4 * 3 * 3 * 3, 0.0f));
+  EXPECT_TRUE(conv_forward(x.data(), w.data(), no_images).empty());
+  ConvGeometry no_pixels{2, 3, 0, 0, 4, 3, 3, 0, 0, 1, 1, 1};
+  EXPECT_EQ(values(conv_weight_grad(x.data(), gy.data(), no_pixels)),
+            std::vector<float>(4 * 3 * 3 * 3, 0.0f));
 }
 
 // conv2d with a bias, where no graph is recorded, starts each output's sum at the bias; the

@@ -206,14 +206,15 @@ TEST(GradCheck, SecondOrderThroughConvolutionsAndGroupNorm) {
 // group_norm_relu is relu(group_norm(...)) fused: the witness is the unfused pair, which it must
 // equal bit for bit in value and in each gradient. The shapes: several channels a group, a
 // count of (sample, group) sums that is not a multiple of the interleaved chains, batches
-// over several reduction blocks, one group.
+// over several reduction blocks, one group, rank 3 and rank 2.
 TEST(GroupNormRelu, IsReluOfGroupNormBitForBit) {
   struct Case {
     Shape x;
     int groups;
   };
-  for (const Case& c : {Case{Shape{3, 6, 5, 7}, 3}, Case{Shape{10, 8, 16, 16}, 8},
-                        Case{Shape{1, 4, 3, 3}, 1}, Case{Shape{5, 12, 9}, 4}}) {
+  for (const Case& c :
+       {Case{Shape{3, 6, 5, 7}, 3}, Case{Shape{10, 8, 16, 16}, 8}, Case{Shape{1, 4, 3, 3}, 1},
+        Case{Shape{5, 12, 9}, 4}, Case{Shape{5, 12}, 4}}) {
     const std::int64_t channels = c.x[1];
     Tensor x = random_tensor(c.x, 40);
     Tensor gamma = random_tensor(Shape{channels}, 41);

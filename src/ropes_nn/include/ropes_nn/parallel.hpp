@@ -5,9 +5,9 @@
 /// Determinism: a kernel's result has the same bits at every thread count. Work is split into
 /// contiguous chunks of fixed bounds; a sum over a batch keeps one partial sum per reduction
 /// block, whose bounds depend on the batch size alone (for_each_reduction_block), and adds the
-/// blocks in order; matrix products split their rows in whole register panels (src/gemm.hpp)
-/// and never use Eigen's own threads. The thread count only decides which thread computes
-/// which block.
+/// blocks in order; matrix products split their rows in whole register panels, or their
+/// columns in whole blocks of Eigen's loop (src/gemm.hpp), and never use Eigen's own threads. The
+/// thread count only decides which thread computes which block.
 
 #include <cstdint>
 
