@@ -137,6 +137,17 @@ void count_flops(const ConvGeometry& g) {
   add_flops(static_cast<std::uint64_t>(2 * g.n * g.o * g.patch() * g.pixels()));
 }
 
+// This thread's im2col buffer for the forward pass, which only grows. From the pool, blocks
+// of one size held by several threads at once would number what the threads' timing made
+// them: a warm inference call could then still allocate (estimator_frame_test at 3 threads
+// on 2 cores saw it). Each thread's work, and so its largest buffer, is fixed.
+float* forward_scratch(std::size_t size) {
+  thread_local Buffer scratch;
+  if (scratch.size() < size)
+    scratch = Buffer(size);
+  return scratch.data();
+}
+
 std::int64_t tiles_of(std::int64_t size, std::int64_t tile) {
   return (size + tile - 1) / tile;
 }
@@ -160,18 +171,18 @@ Buffer conv_forward(const float* x, const float* w, const ConvGeometry& g, ConvT
   const bool share_images = g.n == 1 && !omp_in_parallel();
   if (!blocked || (share_images && tiles < num_threads())) {
     parallel_for(g.n, [&](int, std::int64_t begin, std::int64_t end) {
-      Buffer col(static_cast<std::size_t>(k * n));
+      float* col = forward_scratch(static_cast<std::size_t>(k * n));
       for (std::int64_t i = begin; i < end; ++i) {
         const float* xi = x + i * image;
         if (share_images) {
           parallel_for(n, [&](int, std::int64_t p0, std::int64_t p1) {
-            im2col(xi, g, col.data() + p0, n, p0, p1);
+            im2col(xi, g, col + p0, n, p0, p1);
           });
         } else {
-          im2col(xi, g, col.data(), n, 0, n);
+          im2col(xi, g, col, n, 0, n);
         }
         float* yi = y.data() + i * m * n;
-        gemm(w, col.data(), yi, m, k, n);
+        gemm(w, col, yi, m, k, n);
         if (bias != nullptr) {
           for (std::int64_t r = 0; r < m; ++r)
             for (std::int64_t j = 0; j < n; ++j)
@@ -182,16 +193,16 @@ Buffer conv_forward(const float* x, const float* w, const ConvGeometry& g, ConvT
     return y;
   }
   parallel_for(g.n * tiles, [&](int, std::int64_t begin, std::int64_t end) {
-    Buffer col(static_cast<std::size_t>(k * std::min(tile, n)));
+    float* col = forward_scratch(static_cast<std::size_t>(k * std::min(tile, n)));
     GemmSharedA weights(blocking, w, false, k, m, k);  // packed once for the thread's tiles
     for (std::int64_t item = begin; item < end; ++item) {
       const std::int64_t i = item / tiles, p0 = item % tiles * tile, p1 = std::min(p0 + tile, n);
-      im2col(x + i * image, g, col.data(), p1 - p0, p0, p1);
+      im2col(x + i * image, g, col, p1 - p0, p0, p1);
       float* yi = y.data() + i * m * n + p0;
       if (bias != nullptr)
-        weights.multiply_onto(bias, col.data(), p1 - p0, yi, n, p1 - p0);
+        weights.multiply_onto(bias, col, p1 - p0, yi, n, p1 - p0);
       else
-        weights.multiply(col.data(), p1 - p0, yi, n, p1 - p0, false);
+        weights.multiply(col, p1 - p0, yi, n, p1 - p0, false);
     }
   });
   return y;
