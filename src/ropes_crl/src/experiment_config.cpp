@@ -102,10 +102,11 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
 
     // AE1
     const nlohmann::json& a1 = field(j, "config", "ae1");
-    reject_unknown_keys(a1, "config.ae1",
-                        {"stem", "stem_factor", "stem_channels", "widths", "blocks_per_stage",
-                         "code_channels", "code_head", "batch_size", "steps", "epochs",
-                         "micro_batch", "optimizer", "occlusion_augmentation", "difference_loss"});
+    reject_unknown_keys(
+        a1, "config.ae1",
+        {"stem", "stem_factor", "stem_channels", "widths", "blocks_per_stage", "code_channels",
+         "code_head", "batch_size", "steps", "epochs", "micro_batch", "optimizer",
+         "occlusion_augmentation", "difference_loss", "pair_heads"});
     c.ae1.image_size = c.image_size;
     c.ae1.stem = get_string(a1, "config.ae1", "stem");
     c.ae1.stem_factor = static_cast<int>(get_int(a1, "config.ae1", "stem_factor"));
@@ -181,6 +182,29 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
       c.ae1_training.difference_loss.weight = w;
     }
 
+    if (a1.contains("pair_heads")) {  // optional, an extension: off when absent
+      const std::string at = "config.ae1.pair_heads";
+      const nlohmann::json& o = field(a1, "config.ae1", "pair_heads");
+      if (!o.is_object())
+        throw std::invalid_argument(at +
+                                    ": expected an object {\"weight\", \"pairs_per_joint\"}, "
+                                    "got a " +
+                                    std::string(o.type_name()));
+      reject_unknown_keys(o, at, {"weight", "pairs_per_joint", "head"});
+      const double w = get_double(o, at, "weight");
+      if (!(w > 0 && w <= 1e6))
+        throw std::invalid_argument(at + ".weight: expected in (0, 1e6], got " + number_text(w));
+      const std::int64_t k = get_int(o, at, "pairs_per_joint");
+      if (k < 1 || k > 4096)
+        throw std::invalid_argument(at + ".pairs_per_joint: expected in [1, 4096], got " +
+                                    std::to_string(k));
+      const std::string head = o.contains("head") ? get_string(o, at, "head") : "ldr";
+      if (head != "ldr" && head != "linear")
+        throw std::invalid_argument(at + ".head: expected \"ldr\" or \"linear\", got \"" + head +
+                                    "\"");
+      c.ae1_training.pair_heads = {w, k, head};
+    }
+
     // the code Y: [C, 8, 8]
     const std::int64_t side = c.ae1.code_size();
 
@@ -188,7 +212,7 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
     const nlohmann::json& l = field(j, "config", "ldr");
     reject_unknown_keys(l, "config.ldr",
                         {"widths", "hidden", "batch_size", "max_epochs", "patience",
-                         "held_out_fraction", "optimizer", "input_normalization"});
+                         "held_out_fraction", "optimizer", "input_normalization", "pair_loss"});
     c.ldr.in_channels = c.code_channels();
     c.ldr.input_size = side;
     c.ldr.widths = get_ints(l, "config.ldr", "widths");
@@ -209,6 +233,18 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
                                   core::describe(l["held_out_fraction"]));
     c.ldr_training.optimizer =
         parse_optimizer(field(l, "config.ldr", "optimizer"), "config.ldr.optimizer");
+    if (l.contains("pair_loss")) {  // optional, an extension: off when absent
+      const std::string at = "config.ldr.pair_loss";
+      const nlohmann::json& o = field(l, "config.ldr", "pair_loss");
+      if (!o.is_object())
+        throw std::invalid_argument(at + ": expected an object {\"weight\"}, got a " +
+                                    std::string(o.type_name()));
+      reject_unknown_keys(o, at, {"weight"});
+      const double w = get_double(o, at, "weight");
+      if (!(w > 0 && w <= 1e6))
+        throw std::invalid_argument(at + ".weight: expected in (0, 1e6], got " + number_text(w));
+      c.ldr_training.pair_loss.weight = w;
+    }
 
     // AE2
     const nlohmann::json& a2 = field(j, "config", "ae2");

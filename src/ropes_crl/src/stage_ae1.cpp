@@ -37,12 +37,98 @@ namespace ropes::crl::detail {
 
 using nn::Shape;
 
+namespace {
+
+// A linear pair head: y [N, C, 8, 8] -> flatten -> Dense(C*8*8 -> 1) -> [N]
+class LinearHead : public nn::Module {
+ public:
+  explicit LinearHead(std::int64_t in_features)
+      : dense_(register_module("dense", std::make_shared<nn::Dense>(in_features, 1))) {}
+
+ protected:
+  Tensor forward(const Tensor& y) override {
+    return nn::reshape((*dense_)(nn::flatten(y)), Shape{y.shape()[0]});
+  }
+
+ private:
+  std::shared_ptr<nn::Dense> dense_;
+};
+
+// AE1 with its pair heads (config.ae1.pair_heads): one module, so that the optimiser and the
+// checkpoint hold both; AE1's parameters come first, named "ae1.<name>", the heads' after
+// them, "pair_head.<joint>.<name>". Only AE1 is saved at the end.
+class Ae1WithPairHeads : public nn::Module {
+ public:
+  Ae1WithPairHeads(const std::shared_ptr<Ae1>& ae1,
+                   const std::vector<std::shared_ptr<nn::Module>>& heads,
+                   const std::vector<JointRegimes>& joints) {
+    register_module("ae1", ae1);
+    for (std::size_t k = 0; k < heads.size(); ++k)
+      register_module("pair_head." + joints[k].name, heads[k]);
+  }
+
+ protected:
+  Tensor forward(const Tensor&) override {
+    throw std::logic_error("Ae1WithPairHeads holds AE1 and its heads for training; call them");
+  }
+};
+
+// Each joint's pairs: per training anchor (one the LDRs do not hold out) that has both
+// interventions of the joint, the rows of intervention 1 and of intervention 2, in anchor order.
+std::vector<std::vector<std::pair<std::int64_t, std::int64_t>>> intervention_pairs(
+    const TrainingData& data) {
+  std::vector<std::vector<std::pair<std::int64_t, std::int64_t>>> out;
+  for (const JointRegimes& j : data.joints) {
+    std::map<std::int64_t, std::pair<std::int64_t, std::int64_t>> at;  // anchor -> (r1, r2)
+    for (std::int64_t r : j.rows) {
+      if (data.held_out_anchor(r))
+        continue;
+      auto& p = at.try_emplace(data.anchor[static_cast<std::size_t>(r)], -1, -1).first->second;
+      (data.regime[static_cast<std::size_t>(r)] == j.regime1 ? p.first : p.second) = r;
+    }
+    out.emplace_back();
+    for (const auto& [anchor, p] : at)
+      if (p.first >= 0 && p.second >= 0)
+        out.back().push_back(p);
+    if (out.back().empty())
+      throw std::invalid_argument(
+          "config.ae1.pair_heads pairs each joint's two interventions at one anchor; " +
+          data.dir.string() + " has no training anchor with both interventions of joint " + j.name);
+  }
+  return out;
+}
+
+}  // namespace
+
 void train_ae1(const ExperimentConfig& config, const TrainingData& data, const fs::path& run_dir,
                const TrainOptions& options, const MetricsLog& metrics) {
   const Ae1Training& t = config.ae1_training;
-  Ae1 net(config.ae1);
+  const auto ae1 = std::make_shared<Ae1>(config.ae1);
+  Ae1& net = *ae1;
   net.initialize(derive_seed(options.seed, "ae1.init"));
-  nn::Adam adam(net.named_parameters(), nn::AdamOptions{t.optimizer.lr});
+
+  // the pair heads (an extension): one LDR-shaped head a joint, trained with AE1
+  const PairHeads& pair_config = t.pair_heads;
+  const bool with_heads = pair_config.weight > 0;
+  std::vector<std::shared_ptr<nn::Module>> heads;
+  std::unique_ptr<Ae1WithPairHeads> with_pair_heads;
+  std::vector<std::vector<std::pair<std::int64_t, std::int64_t>>> pairs_of;
+  if (with_heads) {
+    LdrSpec spec = config.ldr;
+    spec.input_normalization = "none";
+    const std::int64_t code = config.ae1.code_size();
+    for (const JointRegimes& j : data.joints) {
+      if (pair_config.head == "linear")
+        heads.push_back(std::make_shared<LinearHead>(config.code_channels() * code * code));
+      else
+        heads.push_back(std::make_shared<Ldr>(spec));
+      heads.back()->initialize(derive_seed(options.seed, "ae1.pair_heads"), j.name);
+    }
+    with_pair_heads = std::make_unique<Ae1WithPairHeads>(ae1, heads, data.joints);
+    pairs_of = intervention_pairs(data);
+  }
+  nn::Module& trained = with_heads ? static_cast<nn::Module&>(*with_pair_heads) : net;
+  nn::Adam adam(trained.named_parameters(), nn::AdamOptions{t.optimizer.lr});
   nn::LrSchedule schedule = t.optimizer.make_schedule(t.steps);
 
   // the difference loss (a variant): half the step's samples are the others' anchors'
@@ -68,7 +154,7 @@ void train_ae1(const ExperimentConfig& config, const TrainingData& data, const f
 
   const fs::path weights = ae1_file(run_dir), checkpoint = checkpoint_of(weights);
   if (fs::exists(checkpoint)) {
-    const nn::LoadedCheckpoint c = resume_from(checkpoint, net, adam);
+    const nn::LoadedCheckpoint c = resume_from(checkpoint, trained, adam);
     schedule = c.schedule;
     loader.seek({c.progress.epoch, c.progress.position});
   }
@@ -84,6 +170,11 @@ void train_ae1(const ExperimentConfig& config, const TrainingData& data, const f
   // the squares of the difference loss's observational partners: a stream of their own
   const std::uint64_t partner_augmentation_seed =
       derive_seed(options.seed, "ae1.occlusion.partners");
+  // the pairs of step s come from stream s of their own seed, so a resumed run draws the same
+  const std::uint64_t pair_seed = derive_seed(options.seed, "ae1.pairs");
+  const std::int64_t pairs_per_joint = pair_config.pairs_per_joint;
+  const std::int64_t pair_count = pairs_per_joint * static_cast<std::int64_t>(data.joints.size());
+  double pair_loss = 0, pair_accuracy = 0;  // the last step's, for the log
   while (adam.steps() < t.steps) {
     const nn::Batch batch = loader.next();
     const std::int64_t n = batch.size() * config.cameras;
@@ -138,8 +229,66 @@ void train_ae1(const ExperimentConfig& config, const TrainingData& data, const f
         return nn::mean(nn::square(nn::sub(net(x), target)), {1, 2, 3});
       });
     }
+    // the pair heads' term: one more micro-batch of the step's pairs, weighted so that the
+    // batch mean is the reconstruction's mean plus weight x the pairs' mean
+    Tensor pair_images;  // outlives the loss, which reads it
+    if (with_heads) {
+      // rows [first of every pair (joint-major) ..., second of every pair ...]
+      core::PhiloxStream rng(pair_seed, static_cast<std::uint64_t>(adam.steps()));
+      std::vector<std::int64_t> rows(static_cast<std::size_t>(2 * pair_count));
+      for (std::size_t k = 0; k < pairs_of.size(); ++k)
+        for (std::int64_t p = 0; p < pairs_per_joint; ++p) {
+          const auto& list = pairs_of[k];
+          const std::size_t pick = std::min(
+              list.size() - 1,
+              static_cast<std::size_t>(rng.uniform_double() * static_cast<double>(list.size())));
+          const std::size_t at =
+              k * static_cast<std::size_t>(pairs_per_joint) + static_cast<std::size_t>(p);
+          rows[at] = list[pick].first;
+          rows[at + static_cast<std::size_t>(pair_count)] = list[pick].second;
+        }
+      const core::NpyArray raw = data.reader.read_rows_at("images", rows);
+      nn::Buffer pixels(raw.data.size());
+      for (std::size_t i = 0; i < pixels.size(); ++i)
+        pixels[i] = static_cast<float>(raw.data[i]) / 255.0f;
+      pair_images =
+          Tensor(Shape{2 * pair_count * config.cameras, 1, side, side}, std::move(pixels));
+      const std::size_t recon_parts = parts.size();
+      const float total = static_cast<float>(n + pair_count);
+      const float recon_scale = total / static_cast<float>(n);
+      const float pair_scale =
+          static_cast<float>(pair_config.weight) * total / static_cast<float>(pair_count);
+      const nn::BatchLoss recon = loss;
+      loss = nn::mean_loss([&, recon, recon_parts, recon_scale, pair_scale](std::size_t i) {
+        if (i < recon_parts)
+          return nn::mul_scalar(recon.statistics(i, true).front(), recon_scale);
+        // Y of every pair image: [2P * cams, K, 8, 8] = [2P, C, 8, 8]
+        const std::int64_t code = config.ae1.code_size();
+        const Tensor y = nn::reshape(net.encode(pair_images),
+                                     Shape{2 * pair_count, config.code_channels(), code, code});
+        std::vector<Tensor> per_pair;
+        for (std::size_t k = 0; k < heads.size(); ++k) {
+          const std::int64_t b = static_cast<std::int64_t>(k) * pairs_per_joint;
+          const Tensor logits = (*heads[k])(
+              nn::concat({nn::slice(y, 0, b, b + pairs_per_joint),
+                          nn::slice(y, 0, pair_count + b, pair_count + b + pairs_per_joint)},
+                         0));  // [2 * pairs_per_joint]: firsts, then seconds
+          per_pair.push_back(nn::sub(nn::slice(logits, 0, pairs_per_joint, 2 * pairs_per_joint),
+                                     nn::slice(logits, 0, 0, pairs_per_joint)));
+        }
+        const Tensor d = nn::concat(per_pair, 0);  // [P]: h_k(y2) - h_k(y1)
+        const Tensor bce = nn::bce_with_logits_elementwise(
+            d, Tensor(Shape{pair_count}, nn::Buffer(static_cast<std::size_t>(pair_count), 1.0f)));
+        pair_loss = nn::mean(bce).item();
+        double right = 0;
+        for (std::int64_t p = 0; p < pair_count; ++p)
+          right += d.data()[p] > 0 ? 1 : 0;
+        pair_accuracy = right / static_cast<double>(pair_count);
+        return nn::mul_scalar(bce, pair_scale);
+      });
+    }
     nn::StepOptions so;
-    so.micro_batches = parts.size();
+    so.micro_batches = parts.size() + (with_heads ? 1 : 0);
     so.schedule = &schedule;
     so.clip_norm = t.optimizer.clip_norm;
     const nn::StepResult r = checked_step(adam, loss, so, "ae1", checkpoint);
@@ -147,19 +296,22 @@ void train_ae1(const ExperimentConfig& config, const TrainingData& data, const f
     const std::int64_t step = adam.steps();
     if (step % config.log_every == 0 || step == t.steps) {
       const double rate = static_cast<double>(window_images) / seconds_since(window);
-      metrics.append({{"stage", "ae1"},
-                      {"step", step},
-                      {"loss", r.loss},
-                      {"lr", r.lr},
-                      {"grad_norm", r.grad_norm},
-                      {"images_per_s", rate}});
+      nlohmann::json record = {{"stage", "ae1"},           {"step", step},
+                               {"loss", r.loss},           {"lr", r.lr},
+                               {"grad_norm", r.grad_norm}, {"images_per_s", rate}};
+      if (with_heads) {  // the last step's pair term (unweighted), and its pairs ordered right
+        record["pair_loss"] = pair_loss;
+        record["pair_accuracy"] = pair_accuracy;
+      }
+      metrics.append(record);
       window = Clock::now();
       window_images = 0;
     }
     progress.update(step, r.loss);
     if (step % config.checkpoint_every == 0 && step < t.steps) {
       const nn::DataCursor at = loader.cursor();
-      nn::save_checkpoint(checkpoint, net, adam, schedule, {options.seed, at.epoch, at.position},
+      nn::save_checkpoint(checkpoint, trained, adam, schedule,
+                          {options.seed, at.epoch, at.position},
                           network_metadata("ae1", config.ae1.to_json(), config));
       note_checkpoint(options, "ae1", step);
     }

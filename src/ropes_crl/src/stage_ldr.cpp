@@ -77,6 +77,22 @@ LdrOutcome train_ldr(const ExperimentConfig& config, const TrainingData& data,
                                 "needs more anchors");
   if (config.ldr.input_normalization == "standardize")
     net.set_input_map(*codes_map);
+  // the pair loss (an extension): each training row's partner, the row of the joint's other
+  // intervention at the same anchor (-1 where there is none)
+  const double pair_weight = t.pair_loss.weight;
+  std::map<std::int64_t, std::int64_t> partner;
+  if (pair_weight > 0) {
+    std::map<std::int64_t, std::pair<std::int64_t, std::int64_t>> at;  // anchor -> (r1, r2)
+    for (std::int64_t r : train_rows) {
+      auto& p = at.try_emplace(data.anchor[static_cast<std::size_t>(r)], -1, -1).first->second;
+      (data.regime[static_cast<std::size_t>(r)] == joint.regime1 ? p.first : p.second) = r;
+    }
+    for (const auto& [anchor, p] : at)
+      if (p.first >= 0 && p.second >= 0) {
+        partner[p.first] = p.second;
+        partner[p.second] = p.first;
+      }
+  }
   nn::Adam adam(net.trained_parameters(), nn::AdamOptions{t.optimizer.lr});
   const std::int64_t batches =
       (static_cast<std::int64_t>(train_rows.size()) + t.batch_size - 1) / t.batch_size;
@@ -100,8 +116,38 @@ LdrOutcome train_ldr(const ExperimentConfig& config, const TrainingData& data,
       nn::StepOptions so;
       so.schedule = &schedule;
       so.clip_norm = t.optimizer.clip_norm;
-      const nn::BatchLoss loss = nn::mean_loss(
+      nn::BatchLoss loss = nn::mean_loss(
           [&](std::size_t) { return nn::bce_with_logits_elementwise(net(y), labels); });
+      // with the pair loss: each row with its partner, (intervention 1, intervention 2)
+      std::vector<std::int64_t> firsts, seconds;
+      if (pair_weight > 0)
+        for (std::int64_t r : rows)
+          if (const auto it = partner.find(r); it != partner.end()) {
+            const bool first = data.regime[static_cast<std::size_t>(r)] == joint.regime1;
+            firsts.push_back(first ? r : it->second);
+            seconds.push_back(first ? it->second : r);
+          }
+      Tensor pair_codes;  // outlives the loss, which reads it
+      if (!firsts.empty()) {
+        std::vector<std::int64_t> both = firsts;
+        both.insert(both.end(), seconds.begin(), seconds.end());
+        pair_codes = data.codes_of(both);
+        const auto n = static_cast<std::int64_t>(rows.size());
+        const auto p = static_cast<std::int64_t>(firsts.size());
+        // per-sample terms scaled so that their mean is the BCE's mean + weight x the pairs'
+        const float total = static_cast<float>(n + p);
+        loss = nn::mean_loss([&, n, p, total](std::size_t) {
+          const Tensor bce = nn::bce_with_logits_elementwise(net(y), labels);
+          const Tensor logits = net(pair_codes);  // [2p]: firsts, then seconds
+          const Tensor d = nn::sub(nn::slice(logits, 0, p, 2 * p), nn::slice(logits, 0, 0, p));
+          const Tensor pair = nn::bce_with_logits_elementwise(
+              d, Tensor(Shape{p}, nn::Buffer(static_cast<std::size_t>(p), 1.0f)));
+          return nn::concat({nn::mul_scalar(bce, total / static_cast<float>(n)),
+                             nn::mul_scalar(pair, static_cast<float>(pair_weight) * total /
+                                                      static_cast<float>(p))},
+                            0);
+        });
+      }
       train_loss += checked_step(adam, loss, so, "ldr " + joint.name, weights).loss;
     }
     const auto [loss, accuracy] = ldr_evaluate(net, data, held_rows, joint.regime2);

@@ -129,6 +129,59 @@ TEST(ExperimentConfig, ErrorsNameTheFileTheFieldAndTheValue) {
   EXPECT_DOUBLE_EQ(ExperimentConfig::from_json(j, "test.json").ae1_training.difference_loss.weight,
                    4.0);
   EXPECT_DOUBLE_EQ(c.ae1_training.difference_loss.weight, 0.0) << "off when absent";
+  // the pair heads (an extension, off when absent): {"weight" > 0, "pairs_per_joint" >= 1}
+  j = c.raw;
+  j["ae1"]["pair_heads"] = 0.5;
+  EXPECT_NE(error_of(j).find("config.ae1.pair_heads: expected an object {\"weight\", "
+                             "\"pairs_per_joint\"}, got a number"),
+            std::string::npos)
+      << error_of(j);
+  j["ae1"]["pair_heads"] = {{"weight", -1}, {"pairs_per_joint", 1}};
+  EXPECT_NE(error_of(j).find("config.ae1.pair_heads.weight: expected in (0, 1e6], got -1"),
+            std::string::npos)
+      << error_of(j);
+  j["ae1"]["pair_heads"] = {{"weight", 1}, {"pairs_per_joint", 0}};
+  EXPECT_NE(error_of(j).find("config.ae1.pair_heads.pairs_per_joint: expected in [1, 4096], got 0"),
+            std::string::npos)
+      << error_of(j);
+  j["ae1"]["pair_heads"] = {{"weight", 1}};
+  EXPECT_NE(error_of(j).find("config.ae1.pair_heads"), std::string::npos) << error_of(j);
+  j["ae1"]["pair_heads"] = {{"weight", 1}, {"pairs_per_joint", 2}, {"joint", "a"}};
+  EXPECT_NE(error_of(j).find("config.ae1.pair_heads.joint: unknown key"), std::string::npos)
+      << error_of(j);
+  j["ae1"]["pair_heads"] = {{"weight", 1}, {"pairs_per_joint", 2}, {"head", "conv"}};
+  EXPECT_NE(error_of(j).find("config.ae1.pair_heads.head: expected \"ldr\" or \"linear\", got "
+                             "\"conv\""),
+            std::string::npos)
+      << error_of(j);
+  j["ae1"]["pair_heads"] = {{"weight", 0.25}, {"pairs_per_joint", 3}};
+  EXPECT_EQ(error_of(j), "");
+  {
+    const PairHeads h = ExperimentConfig::from_json(j, "test.json").ae1_training.pair_heads;
+    EXPECT_DOUBLE_EQ(h.weight, 0.25);
+    EXPECT_EQ(h.pairs_per_joint, 3);
+    EXPECT_EQ(h.head, "ldr") << "the LDR's architecture when absent";
+  }
+  j["ae1"]["pair_heads"]["head"] = "linear";
+  EXPECT_EQ(ExperimentConfig::from_json(j, "test.json").ae1_training.pair_heads.head, "linear");
+  EXPECT_DOUBLE_EQ(c.ae1_training.pair_heads.weight, 0.0) << "off when absent";
+  // the LDRs' pair loss (an extension, off when absent): {"weight" > 0}
+  j = c.raw;
+  j["ldr"]["pair_loss"] = "yes";
+  EXPECT_NE(error_of(j).find("config.ldr.pair_loss: expected an object {\"weight\"}, got a "
+                             "string"),
+            std::string::npos)
+      << error_of(j);
+  j["ldr"]["pair_loss"] = {{"weight", 0}};
+  EXPECT_NE(error_of(j).find("config.ldr.pair_loss.weight: expected in (0, 1e6], got 0"),
+            std::string::npos)
+      << error_of(j);
+  j["ldr"]["pair_loss"] = {{"weight", 2}, {"pairs", 1}};
+  EXPECT_NE(error_of(j).find("config.ldr.pair_loss.pairs: unknown key"), std::string::npos)
+      << error_of(j);
+  j["ldr"]["pair_loss"] = {{"weight", 2}};
+  EXPECT_DOUBLE_EQ(ExperimentConfig::from_json(j, "test.json").ldr_training.pair_loss.weight, 2.0);
+  EXPECT_DOUBLE_EQ(c.ldr_training.pair_loss.weight, 0.0) << "off when absent";
   j = c.raw;
   j["ae2"]["input_normalization"] = 1;
   EXPECT_NE(error_of(j).find("config.ae2.input_normalization"), std::string::npos) << error_of(j);

@@ -43,9 +43,12 @@ inline void draw_bars(const double q[2], std::int64_t camera, std::int64_t size,
 
 // 40 anchors x (observational, do(a)=1, do(a)=2, do(b)=1, do(b)=2) of size x size images,
 // the columns and the metadata ropes-generate writes; without `observational` the metadata
-// names a joint for regime 0, so no sample is observational
+// names a joint for regime 0, so no sample is observational; with `noise_angles` the angles
+// column holds uniform noise on [-1.4, 1.4] instead of the angles drawn (the images are the
+// same): a trainer that reads no angle trains to the same bytes on it
 inline void write_two_bar_dataset(const std::filesystem::path& dir, std::int64_t cameras,
-                                  std::int64_t size, bool observational = true) {
+                                  std::int64_t size, bool observational = true,
+                                  bool noise_angles = false) {
   const std::int64_t anchors = 40, regimes = 5, n = anchors * regimes;
   const std::int64_t pixels = cameras * size * size;
   core::NpyArray images{core::DType::kU8,
@@ -58,13 +61,15 @@ inline void write_two_bar_dataset(const std::filesystem::path& dir, std::int64_t
     const std::int32_t r = static_cast<std::int32_t>(i % regimes);
     const std::int64_t a = i / regimes;
     core::PhiloxStream rng(9, static_cast<std::uint64_t>(i));
+    core::PhiloxStream noise(10, static_cast<std::uint64_t>(i));  // noise_angles: the angles
     double q[2];
     for (int j = 0; j < 2; ++j) {
       const bool intervened = r != 0 && (r - 1) / 2 == j;
       const double mean = !intervened ? 0.0 : (r % 2 == 1 ? -0.6 : 0.6);
       const double sd = intervened ? 0.4 : 0.8;
       q[j] = mean + sd * rng.truncated_normal((-1.4 - mean) / sd, (1.4 - mean) / sd);
-      const float qf = static_cast<float>(q[j]);
+      const float qf =
+          static_cast<float>(noise_angles ? 1.4 * (2 * noise.uniform_double() - 1) : q[j]);
       std::memcpy(&angles.data[static_cast<std::size_t>(i * 8 + j * 4)], &qf, 4);
     }
     for (std::int64_t c = 0; c < cameras; ++c)

@@ -3,6 +3,8 @@
 // after a checkpoint, as a kill would leave it) that resumes to the bytes of a run never
 // stopped.
 #include <ropes_core/npy.hpp>
+#include <ropes_crl/networks.hpp>
+#include <ropes_nn/checkpoint.hpp>
 
 #include <cmath>
 #include <stdexcept>
@@ -42,6 +44,64 @@ TEST_F(TrainerAe1, TrainsAe1AndEncodesEveryRow) {
   }
 }
 
+// AE1 with the pair heads (an extension): 2 pairs a joint a step, heads of `head`
+void add_pair_heads(ExperimentConfig& config, const std::string& head = "ldr") {
+  nlohmann::json raw = config.raw;
+  raw["ae1"]["pair_heads"] = {{"weight", 1.0}, {"pairs_per_joint", 2}, {"head", head}};
+  config = ExperimentConfig::from_json(raw, "1c-tiny with pair heads");
+}
+
+class TrainerAe1PairHeads : public TrainerStage,
+                            public ::testing::WithParamInterface<std::string> {};
+
+TEST_P(TrainerAe1PairHeads, TrainWithAe1AndLogTheirTerm) {
+  add_pair_heads(config_, GetParam());
+  const fs::path run = train_to("run", 1, options_);
+  EXPECT_TRUE(fs::exists(run / "ae1.safetensors"));
+  EXPECT_FALSE(fs::exists(run / "ae1.checkpoint.safetensors"));
+  const std::vector<nlohmann::json> ae1 = records(run, "ae1");
+  ASSERT_EQ(ae1.size(), 6u);
+  for (const nlohmann::json& r : ae1) {
+    const double loss = r.at("pair_loss").get<double>(), right = r.at("pair_accuracy");
+    EXPECT_TRUE(std::isfinite(loss) && loss > 0) << r.dump();
+    // 4 pairs a step (2 joints x 2): a fraction in quarters
+    EXPECT_DOUBLE_EQ(right * 4, std::round(right * 4)) << r.dump();
+  }
+  // the heads are trained with AE1 but not saved with it: the file loads as a plain AE1
+  Ae1 net(config_.ae1);
+  EXPECT_NO_THROW(nn::load_module(net, run / "ae1.safetensors"));
+}
+
+INSTANTIATE_TEST_SUITE_P(Heads, TrainerAe1PairHeads, ::testing::Values("ldr", "linear"));
+
+// The extensions read regimes and anchors, never an angle: on a dataset whose angles column
+// is noise (the same images, regimes and anchors) a run with AE1's pair heads and the LDRs'
+// pair loss comes out byte for byte the same in every weight file of every stage. And the
+// extensions do change the networks, so the comparison is not one of untouched ones.
+TEST_F(TrainerAe1, TheExtensionsReadNoAngle) {
+  const fs::path noise = dir_ / "noise";
+  write_two_bar_dataset(noise, config_.cameras, config_.image_size, true, true);
+  ASSERT_NE(file_bytes(noise / "shards" / "angles-00000.npy"),
+            file_bytes(data() / "shards" / "angles-00000.npy"))
+      << "the noise dataset's angles differ from the drawn ones";
+  const fs::path plain = train_to("plain", 3, options_);
+  add_pair_heads(config_);
+  nlohmann::json raw = config_.raw;
+  raw["ldr"]["pair_loss"] = {{"weight", 1.0}};
+  config_ = ExperimentConfig::from_json(raw, "1c-tiny with both extensions");
+  const fs::path extended = train_to("extended", 3, options_);
+  TrainOptions o = options_;
+  o.last_stage = 3;
+  train(config_, noise, dir_ / "extended_noise", o);
+  for (const char* f : {"ae1.safetensors", "codes.npy", "ldr.a.safetensors", "ldr.b.safetensors",
+                        "ae2.a.safetensors", "ae2.b.safetensors"}) {
+    EXPECT_EQ(file_bytes(dir_ / "extended_noise" / f), file_bytes(extended / f))
+        << f << ": the angles reached the training";
+    EXPECT_NE(file_bytes(plain / f), file_bytes(extended / f))
+        << f << ": the extensions changed nothing";
+  }
+}
+
 TEST_F(TrainerAe1, AStopInsideTheStageResumesToTheSameBytes) {
   const fs::path whole = train_to("whole", 1, options_);
   TrainOptions stopping = options_;
@@ -59,6 +119,27 @@ TEST_F(TrainerAe1, AStopInsideTheStageResumesToTheSameBytes) {
     EXPECT_EQ(file_bytes(run / f), file_bytes(whole / f)) << f << " differs after the resume";
   // the records of the steps after the checkpoint are written once
   EXPECT_EQ(records(run, "ae1").size(), 6u);
+}
+
+TEST_F(TrainerAe1, AStopWithPairHeadsResumesToTheSameBytes) {
+  add_pair_heads(config_);
+  const fs::path whole = train_to("whole", 1, options_);
+  TrainOptions stopping = options_;
+  stopping.on_checkpoint = [](const std::string& stage, std::int64_t step) {
+    if (stage == "ae1" && step == 2)
+      throw std::runtime_error("stopped at ae1 step 2");
+  };
+  EXPECT_THROW(train_to("stopped", 1, stopping), std::runtime_error);
+  const fs::path run = dir_ / "stopped";
+  ASSERT_TRUE(fs::exists(run / "ae1.checkpoint.safetensors"));
+  train_to("stopped", 1, options_);
+  for (const char* f : {"ae1.safetensors", "codes.npy"})
+    EXPECT_EQ(file_bytes(run / f), file_bytes(whole / f)) << f << " differs after the resume";
+  // the same pairs drawn after the resume: the same pair terms, each step logged once
+  const std::vector<nlohmann::json> resumed = records(run, "ae1"), once = records(whole, "ae1");
+  ASSERT_EQ(resumed.size(), once.size());
+  for (std::size_t i = 0; i < once.size(); ++i)
+    EXPECT_EQ(resumed[i]["pair_loss"], once[i]["pair_loss"]) << "step " << i + 1;
 }
 
 }  // namespace

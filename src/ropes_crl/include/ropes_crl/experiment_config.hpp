@@ -58,6 +58,30 @@ struct DifferenceLoss {
   double weight = 0;  ///< 0: off
 };
 
+/// An extension of AE1's training, not the paper's method: AE1's encoder also learns to
+/// order each joint's two interventions. Per intervened joint k a head h_k reads the code Y
+/// (`head` "ldr": the LDR's architecture, config.ldr's widths and hidden, no input map;
+/// "linear": one dense layer from the flattened code to a number); each step
+/// draws `pairs_per_joint` anchors a joint among the training anchors (those the LDRs do
+/// not hold out) and, for anchor a, the rows r1 of intervention 1 and r2 of intervention 2
+/// of joint k at a, which share every other joint's angle. It adds `weight` times the mean
+/// over the step's pairs of
+///   softplus(-(h_k(E1(x_r2)) - h_k(E1(x_r1))))
+/// (binary cross-entropy of the logit h_k(y2) - h_k(y1) with label 1), its gradient flowing
+/// into the encoder. For an unordered pair, one sample from each intervention and every other
+/// joint shared, P(the second is from intervention 2) = sigmoid(LDR_k(y2) - LDR_k(y1)), so
+/// the term is the pair likelihood of a log-density-ratio model whose nuisance (the other
+/// joints) cancels in the difference. It reads the regime and anchor columns, as the LDRs
+/// do, and no angle. The pair images are clean (no occlusion squares) and are not
+/// reconstructed; the heads are trained with AE1 and not saved with it. The config's optional
+/// ae1.pair_heads {"weight", "pairs_per_joint", "head" (optional, "ldr" when absent)}; off
+/// when absent.
+struct PairHeads {
+  double weight = 0;                 ///< 0: off
+  std::int64_t pairs_per_joint = 1;  ///< anchors a joint, a step
+  std::string head = "ldr";          ///< "ldr" or "linear"
+};
+
 /// Stage 1: AE1 on every camera image of the dataset, MSE.
 struct Ae1Training {
   std::int64_t batch_size = 32;  ///< images a step (a sample of C cameras is C images)
@@ -66,6 +90,21 @@ struct Ae1Training {
   OptimizerConfig optimizer;
   OcclusionAugmentation occlusion_augmentation;
   DifferenceLoss difference_loss;
+  PairHeads pair_heads;
+};
+
+/// An extension of the LDRs' training, not the paper's method: besides the binary
+/// cross-entropy of each sample, each batch adds `weight` times the mean over its samples'
+/// pairs of softplus(-(LDR(y2) - LDR(y1))), y1 and y2 the codes of the samples of
+/// intervention 1 and 2 of the joint at one anchor (the batch's sample and its partner, which
+/// share every other joint's angle). For such a pair P(y2 is the one from intervention 2) =
+/// sigmoid(LDR(y2) - LDR(y1)), so the term is the pair likelihood of the same log density
+/// ratio, with the other joints cancelled; the unpaired term pins what the difference cannot
+/// see (a function of the other joints alone). Early stopping still reads the unpaired
+/// held-out loss. Regimes and anchors only, no angle. The config's optional
+/// ldr.pair_loss {"weight"}; off when absent.
+struct LdrPairLoss {
+  double weight = 0;  ///< 0: off
 };
 
 /// Stage 2: one LDR per intervened joint, intervention 1 (label 0) against 2 (label 1),
@@ -76,6 +115,7 @@ struct LdrTraining {
   std::int64_t patience = 5;       ///< epochs without a better held-out loss before stopping
   double held_out_fraction = 0.2;  ///< of the anchors, drawn by seed
   OptimizerConfig optimizer;
+  LdrPairLoss pair_loss;
 };
 
 /// Stage 3: AE2, reconstruction + lambda * sparsity.
