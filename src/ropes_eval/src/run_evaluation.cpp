@@ -148,7 +148,8 @@ void summarize(MethodSummary& m) {
 void describe_run(RunEvaluation& ev, const crl::RunDirectory& run,
                   const crl::ExperimentConfig& config) {
   ev.config_name = config.name;
-  ev.setting = config.name.substr(0, config.name.rfind('-'));
+  // the setting is the name before its first '-': "2c" of "2c-small" and "2c-small-plus"
+  ev.setting = config.name.substr(0, config.name.find('-'));
   ev.joints = config.joints;
   ev.train_dataset_id = run.dataset_id();
   ev.provenance = {{"training", run.provenance()},
@@ -165,6 +166,17 @@ void describe_run(RunEvaluation& ev, const crl::RunDirectory& run,
         "from images with white squares (probability " +
         fmt(a.probability, 2) + ", " + std::to_string(a.min_size) + " to " +
         std::to_string(a.max_size) + " px)");
+  if (const crl::PairHeads& h = config.ae1_training.pair_heads; h.weight > 0)
+    ev.extensions.push_back(
+        "ae1.pair_heads: AE1's encoder also trained to order each joint's two interventions "
+        "at one anchor (a head per joint, weight " +
+        fmt(h.weight, 3) + ", " + std::to_string(h.pairs_per_joint) + " pair(s) a joint a step, " +
+        h.head + " heads; regimes and anchors only, no angle)");
+  if (const double w = config.ldr_training.pair_loss.weight; w > 0)
+    ev.extensions.push_back(
+        "ldr.pair_loss: each LDR also trained to order its joint's two interventions at one "
+        "anchor (weight " +
+        fmt(w, 3) + "; regimes and anchors only, no angle)");
 }
 
 // the test set's observational rows, and where each of the run's joints is among its angles
