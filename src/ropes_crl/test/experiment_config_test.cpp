@@ -33,7 +33,7 @@ TEST(ExperimentConfig, EveryShippedConfigParses) {
     EXPECT_EQ(c.ldr.in_channels, c.cameras);
     ++count;
   }
-  EXPECT_EQ(count, 9);  // {1c, 2c, 2c_causal} x {tiny, small, paper}
+  EXPECT_EQ(count, 10);  // {1c, 2c, 2c_causal} x {tiny, small, paper}, and 1c-small-plus
 }
 
 TEST(ExperimentConfig, ThePaperPresetIsTheAppendix) {
