@@ -73,23 +73,12 @@ class Ae1WithPairHeads : public nn::Module {
   }
 };
 
-// Each joint's pairs: per training anchor (one the LDRs do not hold out) that has both
-// interventions of the joint, the rows of intervention 1 and of intervention 2, in anchor order.
+// Each joint's training pairs (TrainingData::training_pairs); a joint without any is refused.
 std::vector<std::vector<std::pair<std::int64_t, std::int64_t>>> intervention_pairs(
     const TrainingData& data) {
   std::vector<std::vector<std::pair<std::int64_t, std::int64_t>>> out;
   for (const JointRegimes& j : data.joints) {
-    std::map<std::int64_t, std::pair<std::int64_t, std::int64_t>> at;  // anchor -> (r1, r2)
-    for (std::int64_t r : j.rows) {
-      if (data.held_out_anchor(r))
-        continue;
-      auto& p = at.try_emplace(data.anchor[static_cast<std::size_t>(r)], -1, -1).first->second;
-      (data.regime[static_cast<std::size_t>(r)] == j.regime1 ? p.first : p.second) = r;
-    }
-    out.emplace_back();
-    for (const auto& [anchor, p] : at)
-      if (p.first >= 0 && p.second >= 0)
-        out.back().push_back(p);
+    out.push_back(data.training_pairs(j));
     if (out.back().empty())
       throw std::invalid_argument(
           "config.ae1.pair_heads pairs each joint's two interventions at one anchor; " +

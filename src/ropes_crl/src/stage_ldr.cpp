@@ -78,21 +78,14 @@ LdrOutcome train_ldr(const ExperimentConfig& config, const TrainingData& data,
   if (config.ldr.input_normalization == "standardize")
     net.set_input_map(*codes_map);
   // the pair loss (an extension): each training row's partner, the row of the joint's other
-  // intervention at the same anchor (-1 where there is none)
+  // intervention at the same anchor
   const double pair_weight = t.pair_loss.weight;
   std::map<std::int64_t, std::int64_t> partner;
-  if (pair_weight > 0) {
-    std::map<std::int64_t, std::pair<std::int64_t, std::int64_t>> at;  // anchor -> (r1, r2)
-    for (std::int64_t r : train_rows) {
-      auto& p = at.try_emplace(data.anchor[static_cast<std::size_t>(r)], -1, -1).first->second;
-      (data.regime[static_cast<std::size_t>(r)] == joint.regime1 ? p.first : p.second) = r;
+  if (pair_weight > 0)
+    for (const auto& [r1, r2] : data.training_pairs(joint)) {
+      partner[r1] = r2;
+      partner[r2] = r1;
     }
-    for (const auto& [anchor, p] : at)
-      if (p.first >= 0 && p.second >= 0) {
-        partner[p.first] = p.second;
-        partner[p.second] = p.first;
-      }
-  }
   nn::Adam adam(net.trained_parameters(), nn::AdamOptions{t.optimizer.lr});
   const std::int64_t batches =
       (static_cast<std::int64_t>(train_rows.size()) + t.batch_size - 1) / t.batch_size;

@@ -153,6 +153,22 @@ void TrainingData::load_codes(const fs::path& path) {
   std::memcpy(codes.data(), a.data.data(), codes.size() * 4);
 }
 
+std::vector<std::pair<std::int64_t, std::int64_t>> TrainingData::training_pairs(
+    const JointRegimes& joint) const {
+  std::map<std::int64_t, std::pair<std::int64_t, std::int64_t>> at;  // anchor -> (r1, r2)
+  for (std::int64_t r : joint.rows) {
+    if (held_out_anchor(r))
+      continue;
+    auto& p = at.try_emplace(anchor[static_cast<std::size_t>(r)], -1, -1).first->second;
+    (regime[static_cast<std::size_t>(r)] == joint.regime1 ? p.first : p.second) = r;
+  }
+  std::vector<std::pair<std::int64_t, std::int64_t>> out;
+  for (const auto& [a, p] : at)
+    if (p.first >= 0 && p.second >= 0)
+      out.push_back(p);
+  return out;
+}
+
 nn::Tensor TrainingData::codes_of(const std::vector<std::int64_t>& picked) const {
   return gather_rows(codes, code_shape, picked);
 }

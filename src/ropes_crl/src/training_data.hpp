@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <set>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace ropes::crl::detail {
@@ -44,6 +45,11 @@ struct TrainingData {
   bool held_out_anchor(std::int64_t row) const {
     return held_out_anchors.count(anchor[static_cast<std::size_t>(row)]) != 0;
   }
+  /// The pairs of `joint`'s two interventions at one training anchor (not held out), which
+  /// share every other joint's angle: (row of intervention 1, row of intervention 2), in
+  /// anchor order; an anchor without both has none.
+  std::vector<std::pair<std::int64_t, std::int64_t>> training_pairs(
+      const JointRegimes& joint) const;
   void load_codes(const std::filesystem::path& path);
   /// The codes of every row of the training anchors (not held out): what the input maps of
   /// the LDRs and AE2 are fitted on. [rows, C, 8, 8]
