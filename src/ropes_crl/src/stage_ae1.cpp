@@ -96,7 +96,8 @@ void train_ae1(const ExperimentConfig& config, const TrainingData& data, const f
   Ae1& net = *ae1;
   net.initialize(derive_seed(options.seed, "ae1.init"));
 
-  // the pair heads (an extension): one LDR-shaped head a joint, trained with AE1
+  // the pair heads (an extension): a head a joint (the LDR's architecture or linear), trained
+  // with AE1
   const PairHeads& pair_config = t.pair_heads;
   const bool with_heads = pair_config.weight > 0;
   std::vector<std::shared_ptr<nn::Module>> heads;
