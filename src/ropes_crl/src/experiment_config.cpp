@@ -50,6 +50,24 @@ std::string number_text(double v) {
   return s.str();
 }
 
+// An optional weighted term of a loss (ae1.difference_loss, ae1.pair_heads, ldr.pair_loss):
+// parent[key] must be an object (`shape` names its fields in the error) with no key outside
+// `keys` and a weight in (0, 1e6]. Returns the object; its weight goes to `weight`.
+const nlohmann::json& weighted_term(const nlohmann::json& parent, const std::string& parent_at,
+                                    const std::string& key, const std::string& shape,
+                                    const std::vector<std::string>& keys, double& weight) {
+  const std::string at = parent_at + "." + key;
+  const nlohmann::json& o = field(parent, parent_at, key);
+  if (!o.is_object())
+    throw std::invalid_argument(at + ": expected an object " + shape + ", got a " +
+                                std::string(o.type_name()));
+  reject_unknown_keys(o, at, keys);
+  weight = get_double(o, at, "weight");
+  if (!(weight > 0 && weight <= 1e6))
+    throw std::invalid_argument(at + ".weight: expected in (0, 1e6], got " + number_text(weight));
+  return o;
+}
+
 }  // namespace
 
 nn::LrSchedule OptimizerConfig::make_schedule(std::int64_t steps) const {
@@ -164,14 +182,8 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
 
     if (a1.contains("difference_loss")) {  // optional, a variant: off when absent
       const std::string at = "config.ae1.difference_loss";
-      const nlohmann::json& o = field(a1, "config.ae1", "difference_loss");
-      if (!o.is_object())
-        throw std::invalid_argument(at + ": expected an object {\"weight\"}, got a " +
-                                    std::string(o.type_name()));
-      reject_unknown_keys(o, at, {"weight"});
-      const double w = get_double(o, at, "weight");
-      if (!(w > 0 && w <= 1e6))
-        throw std::invalid_argument(at + ".weight: expected in (0, 1e6], got " + number_text(w));
+      double w = 0;
+      weighted_term(a1, "config.ae1", "difference_loss", "{\"weight\"}", {"weight"}, w);
       const std::int64_t samples = c.ae1_training.batch_size / c.cameras;
       if (samples % 2 != 0)
         throw std::invalid_argument(
@@ -184,16 +196,10 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
 
     if (a1.contains("pair_heads")) {  // optional, an extension: off when absent
       const std::string at = "config.ae1.pair_heads";
-      const nlohmann::json& o = field(a1, "config.ae1", "pair_heads");
-      if (!o.is_object())
-        throw std::invalid_argument(at +
-                                    ": expected an object {\"weight\", \"pairs_per_joint\"}, "
-                                    "got a " +
-                                    std::string(o.type_name()));
-      reject_unknown_keys(o, at, {"weight", "pairs_per_joint", "head"});
-      const double w = get_double(o, at, "weight");
-      if (!(w > 0 && w <= 1e6))
-        throw std::invalid_argument(at + ".weight: expected in (0, 1e6], got " + number_text(w));
+      double w = 0;
+      const nlohmann::json& o =
+          weighted_term(a1, "config.ae1", "pair_heads", "{\"weight\", \"pairs_per_joint\"}",
+                        {"weight", "pairs_per_joint", "head"}, w);
       const std::int64_t k = get_int(o, at, "pairs_per_joint");
       if (k < 1 || k > 4096)
         throw std::invalid_argument(at + ".pairs_per_joint: expected in [1, 4096], got " +
@@ -234,15 +240,8 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
     c.ldr_training.optimizer =
         parse_optimizer(field(l, "config.ldr", "optimizer"), "config.ldr.optimizer");
     if (l.contains("pair_loss")) {  // optional, an extension: off when absent
-      const std::string at = "config.ldr.pair_loss";
-      const nlohmann::json& o = field(l, "config.ldr", "pair_loss");
-      if (!o.is_object())
-        throw std::invalid_argument(at + ": expected an object {\"weight\"}, got a " +
-                                    std::string(o.type_name()));
-      reject_unknown_keys(o, at, {"weight"});
-      const double w = get_double(o, at, "weight");
-      if (!(w > 0 && w <= 1e6))
-        throw std::invalid_argument(at + ".weight: expected in (0, 1e6], got " + number_text(w));
+      double w = 0;
+      weighted_term(l, "config.ldr", "pair_loss", "{\"weight\"}", {"weight"}, w);
       c.ldr_training.pair_loss.weight = w;
     }
 
