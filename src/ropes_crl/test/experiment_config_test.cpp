@@ -33,7 +33,7 @@ TEST(ExperimentConfig, EveryShippedConfigParses) {
     EXPECT_EQ(c.ldr.in_channels, c.cameras);
     ++count;
   }
-  EXPECT_EQ(count, 10);  // {1c, 2c, 2c_causal} x {tiny, small, paper}, and 1c-small-plus
+  EXPECT_EQ(count, 12);  // {1c, 2c, 2c_causal} x {tiny, small, small-plus, paper}
 }
 
 TEST(ExperimentConfig, ThePaperPresetIsTheAppendix) {

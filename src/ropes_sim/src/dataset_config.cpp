@@ -197,11 +197,11 @@ DatasetConfig DatasetConfig::load(const std::filesystem::path& path) {
     if (!sets.is_object())
       fail(file, std::string("test_sets is a JSON ") + sets.type_name() +
                      "; expected an object of suites and dataset config names, "
-                     "{\"ood\": NAME, \"causal\": NAME}");
+                     "{\"id\": NAME, \"ood\": NAME, \"causal\": NAME}");
     for (const auto& [suite, name] : sets.items()) {
-      if (suite != "ood" && suite != "causal")
-        fail(file, "test_sets has the suite '" + suite.substr(0, 64) +
-                       "'; expected ood or causal (id is the training config itself)");
+      if (suite != "id" && suite != "ood" && suite != "causal")
+        fail(file,
+             "test_sets has the suite '" + suite.substr(0, 64) + "'; expected id, ood or causal");
       const std::string n = text(name, file, "test_sets." + suite);
       if (!core::is_plain_name(n))
         fail(file, "test_sets." + suite + " is '" + n.substr(0, 64) +

@@ -30,27 +30,38 @@ TEST(DatasetConfig, InstalledConfigsLoad) {
   }
 }
 
-// every installed config's test sets (the suites' ood and causal test sets) are installed
-// configs of the same rig and image size; a 2C training config names both, a 1C one none
+// every installed config's test sets (the suites' ood and causal test sets, and a smaller id
+// test set where one is named) are installed configs of the same rig and image size; a 2C
+// training config names ood and causal, a 1C one none; an id test set has the training
+// config's own distribution
 TEST(DatasetConfig, InstalledTestSetsExistAndShowTheRobotAsTheTrainingSetDoes) {
   int named = 0;
   for (const auto& entry : fs::directory_iterator(ROPES_SIM_DATASETS_DIR)) {
     const auto c = DatasetConfig::load(entry.path());
     const bool two_camera_training =
         c.name.find("2c") != std::string::npos && c.name.find("_ood") == std::string::npos;
-    EXPECT_EQ(c.test_sets.size(), two_camera_training ? 2u : 0u) << c.name;
+    const bool plus = c.name.rfind("small-plus-", 0) == 0;
+    EXPECT_EQ(c.test_sets.size(), two_camera_training ? (plus ? 3u : 2u) : 0u) << c.name;
     for (const auto& [suite, name] : c.test_sets) {
       const auto t = DatasetConfig::load(fs::path(ROPES_SIM_DATASETS_DIR) / (name + ".json"));
       EXPECT_EQ(t.rig.cameras.size(), c.rig.cameras.size()) << c.name << " " << suite;
       EXPECT_EQ(t.rig.width, c.rig.width) << c.name << " " << suite;
-      EXPECT_TRUE(t.test_sets.empty() || suite == "causal") << name;
+      EXPECT_TRUE(t.test_sets.empty() || suite != "ood") << name;
+      if (suite == "id") {
+        EXPECT_EQ(t.distribution, c.distribution) << c.name;
+        EXPECT_LT(t.anchors, c.anchors) << c.name;
+      }
       ++named;
     }
   }
-  EXPECT_EQ(named, 12);  // tiny, small and paper: 2c and 2c_causal, each ood and causal
+  // tiny, small and paper: 2c and 2c_causal, each ood and causal; small-plus also id
+  EXPECT_EQ(named, 18);
   EXPECT_EQ(
       DatasetConfig::load(fs::path(ROPES_SIM_DATASETS_DIR) / "small-2c.json").test_sets.at("ood"),
       "small-2c_ood");
+  EXPECT_EQ(DatasetConfig::load(fs::path(ROPES_SIM_DATASETS_DIR) / "small-plus-2c.json")
+                .test_sets.at("id"),
+            "small-2c");
 }
 
 TEST(DatasetConfig, BadFieldsAreNamed) {
@@ -85,14 +96,15 @@ TEST(DatasetConfig, BadFieldsAreNamed) {
                 .find("rig.cameras[0]: camera 'c': fov_y_deg = 0"),
             std::string::npos);
   EXPECT_NE(message("{\"name\": ").find("not JSON"), std::string::npos);
-  // test_sets: an object of ood and causal, each the plain name of a config
+  // test_sets: an object of id, ood and causal, each the plain name of a config
   const std::string sets = "\"anchors_per_shard\": 3";
   EXPECT_EQ(with(sets, sets + R"(, "test_sets": {"ood": "small-2c_ood"})"), "no error");
+  EXPECT_EQ(with(sets, sets + R"(, "test_sets": {"id": "small-2c"})"), "no error");
   EXPECT_NE(with(sets, sets + R"(, "test_sets": ["ood"])")
                 .find("test_sets is a JSON array; expected an object of suites"),
             std::string::npos);
   EXPECT_NE(with(sets, sets + R"(, "test_sets": {"occlusion": "x"})")
-                .find("test_sets has the suite 'occlusion'; expected ood or causal"),
+                .find("test_sets has the suite 'occlusion'; expected id, ood or causal"),
             std::string::npos);
   EXPECT_NE(with(sets, sets + R"(, "test_sets": {"ood": "../x"})")
                 .find("test_sets.ood is '../x'; expected the name of an installed dataset config"),

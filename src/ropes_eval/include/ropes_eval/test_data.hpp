@@ -40,9 +40,10 @@ struct TestData {
 };
 
 /// The dataset config a suite uses for a run trained on the config `train_config` (the
-/// installed one of that name, or `train_config_file` when given): id -> the config itself;
-/// ood and causal -> the names its "test_sets" field gives (small-2c: small-2c_ood,
-/// small-2c_causal; sim::DatasetConfig::test_sets). Empty when the config names none for the
+/// installed one of that name, or `train_config_file` when given): the names its "test_sets"
+/// field gives (small-2c: small-2c_ood, small-2c_causal; small-plus-2c also id: small-2c;
+/// sim::DatasetConfig::test_sets); id without one -> the config itself. Empty when the
+/// config names none for the
 /// suite (the 1C configs: the paper defines no OOD or causal test set for one camera) or is
 /// no installed config. Throws sim::ConfigError for a config that does not load.
 std::string suite_config_name(const std::string& train_config, const std::string& distribution,

@@ -68,15 +68,15 @@ fs::path installed_dataset_config(const std::string& name_or_path) {
 
 std::string suite_config_name(const std::string& train_config, const std::string& distribution,
                               const fs::path& train_config_file) {
-  if (distribution == "id")
-    return train_config;
   const fs::path file =
       train_config_file.empty() ? installed_config(train_config) : train_config_file;
   if (file.empty())
-    return "";
+    return distribution == "id" ? train_config : "";
   const sim::DatasetConfig config = sim::DatasetConfig::load(file);
   const auto named = config.test_sets.find(distribution);
-  return named == config.test_sets.end() ? "" : named->second;
+  if (named == config.test_sets.end())
+    return distribution == "id" ? train_config : "";
+  return named->second;
 }
 
 namespace {
