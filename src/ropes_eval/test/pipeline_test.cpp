@@ -1360,7 +1360,10 @@ TEST_F(Pipeline, SmallPresetPlusOneCameraReachesTheMeasuredMcc) {
 #endif
 }
 
-// 2C: 10,000 training anchors, the id suite on the small preset's test set (small-2c)
+// 2C: 10,000 training anchors, the id suite on the small preset's test set (small-2c). The pin
+// is seed 0's main job (an id-only evaluation of that run gave the same nine digits), the
+// floors the lowest of seeds 0, 1 and 2; the witness is the paper's Table 1 beside it in
+// results.json. About 23 minutes.
 TEST_F(Pipeline, SmallPresetPlusTwoCamerasReachesTheMeasuredMcc) {
 #if defined(ROPES_PIPELINE_SANITIZED)
   GTEST_SKIP() << "the cut-short small preset above covers this code under the sanitizers";
@@ -1369,7 +1372,7 @@ TEST_F(Pipeline, SmallPresetPlusTwoCamerasReachesTheMeasuredMcc) {
       "2c-small-plus", dir_ / "small_plus_2c",
       {"panda_joint1", "panda_joint2", "panda_joint3", "panda_joint4", "panda_joint5",
        "panda_joint6"},
-      {0.758, 0.978, 0.482, 0.863, 0.274, 0.783},
+      {0.743, 0.966, 0.482, 0.858, 0.274, 0.783},
       {0.758927348, 0.978127144, 0.482917690, 0.863597974, 0.274684378, 0.783161161});
 #endif
 }
