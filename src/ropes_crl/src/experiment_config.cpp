@@ -50,9 +50,9 @@ std::string number_text(double v) {
   return s.str();
 }
 
-// An optional weighted term of a loss (ae1.difference_loss, ae1.pair_heads, ldr.pair_loss):
-// parent[key] must be an object (`shape` names its fields in the error) with no key outside
-// `keys` and a weight in (0, 1e6]. Returns the object; its weight goes to `weight`.
+// An optional weighted term of a loss (ae1.difference_loss, ae1.pair_heads, ldr.pair_loss,
+// ae2.logit_loss): parent[key] must be an object (`shape` names its fields in the error) with no
+// key outside `keys` and a weight in (0, 1e6]. Returns the object; its weight goes to `weight`.
 const nlohmann::json& weighted_term(const nlohmann::json& parent, const std::string& parent_at,
                                     const std::string& key, const std::string& shape,
                                     const std::vector<std::string>& keys, double& weight) {
@@ -247,12 +247,27 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
 
     // AE2
     const nlohmann::json& a2 = field(j, "config", "ae2");
-    reject_unknown_keys(
-        a2, "config.ae2",
-        {"kind", "latent_dim", "widths", "decoder_widths", "blocks_per_stage", "activation", "mode",
-         "lambda", "sparsity_norm", "sparsity_diagonal", "score_normalization", "score_samples",
-         "batch_size", "sparsity_batch_size", "steps", "micro_batch", "optimizer",
-         "lambda0_baseline", "input_normalization"});
+    reject_unknown_keys(a2, "config.ae2",
+                        {"kind",
+                         "latent_dim",
+                         "widths",
+                         "decoder_widths",
+                         "blocks_per_stage",
+                         "activation",
+                         "mode",
+                         "lambda",
+                         "sparsity_norm",
+                         "sparsity_diagonal",
+                         "score_normalization",
+                         "score_samples",
+                         "batch_size",
+                         "sparsity_batch_size",
+                         "steps",
+                         "micro_batch",
+                         "optimizer",
+                         "lambda0_baseline",
+                         "input_normalization",
+                         "logit_loss"});
     c.ae2.kind = get_string(a2, "config.ae2", "kind");
     c.ae2.in_channels = c.code_channels();
     c.ae2.input_size = side;
@@ -299,6 +314,11 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
     require_positive(t.micro_batch, "config.ae2.micro_batch");
     t.optimizer = parse_optimizer(field(a2, "config.ae2", "optimizer"), "config.ae2.optimizer");
     t.lambda0_baseline = get_bool(a2, "config.ae2", "lambda0_baseline");
+    if (a2.contains("logit_loss")) {  // optional, an extension: off when absent
+      double w = 0;
+      weighted_term(a2, "config.ae2", "logit_loss", "{\"weight\"}", {"weight"}, w);
+      t.logit_loss.weight = w;
+    }
     if (c.ae2.latent_dim < static_cast<std::int64_t>(c.joints.size()))
       throw std::invalid_argument("config.ae2.latent_dim: " + std::to_string(c.ae2.latent_dim) +
                                   " is smaller than the number of intervened joints (" +

@@ -98,10 +98,28 @@ Tensor join(const std::vector<Tensor>& pieces) {
 
 }  // namespace
 
+Tensor logit_correlation_loss(const Tensor& m) {
+  if (m.shape() != Shape{5})
+    throw std::invalid_argument("logit_correlation_loss: moments " + m.shape().str() +
+                                "; expected [5]: E z, E z^2, E z l, E l, E l^2");
+  const auto at = [&m](std::int64_t i) { return nn::slice(m, 0, i, i + 1); };
+  const Tensor ez = at(0), el = at(3);
+  const Tensor cov = nn::sub(at(2), nn::mul(ez, el));
+  const Tensor var_z = nn::sub(at(1), nn::square(ez)), var_l = nn::sub(at(4), nn::square(el));
+  const Tensor corr =
+      nn::div(cov, nn::sqrt(nn::add_scalar(nn::relu(nn::mul(var_z, var_l)), 1e-12f)));
+  return nn::sum(nn::neg(nn::add_scalar(corr, -1.0f)));
+}
+
 nn::BatchLoss ae2_batch_loss(Ae2& ae2, const Ae2Batch& batch, double lambda, SparsityNorm norm,
                              std::int64_t micro_batch, std::size_t* micro_batches,
                              SparsityDiagonal diagonal) {
   const std::size_t terms = lambda > 0 ? batch.term_codes.size() : 0;
+  const std::size_t logit_terms = batch.logit_weight > 0 ? batch.term_logits.size() : 0;
+  if (logit_terms > 0 && logit_terms != batch.targets.size())
+    throw std::invalid_argument("ae2_batch_loss: " + std::to_string(logit_terms) +
+                                " logit sets for " + std::to_string(batch.targets.size()) +
+                                " terms; expected one per term");
   if (batch.term_scores.size() != batch.term_codes.size() ||
       batch.targets.size() != batch.term_codes.size())
     throw std::invalid_argument("ae2_batch_loss: " + std::to_string(batch.term_codes.size()) +
@@ -112,6 +130,11 @@ nn::BatchLoss ae2_batch_loss(Ae2& ae2, const Ae2Batch& batch, double lambda, Spa
     throw std::invalid_argument("ae2_batch_loss: micro_batch must be >= 1, got " +
                                 std::to_string(micro_batch));
   const std::int64_t n_r = batch.reconstruction.shape()[0];
+  for (std::size_t k = 0; k < logit_terms; ++k)
+    if (batch.term_logits[k].shape() != Shape{n_r})
+      throw std::invalid_argument("ae2_batch_loss: logit set " + std::to_string(k) + " is " +
+                                  batch.term_logits[k].shape().str() + "; expected [" +
+                                  std::to_string(n_r) + "], one a reconstruction sample");
   std::int64_t total = n_r;
   for (std::size_t k = 0; k < terms; ++k)
     total += batch.term_codes[k].shape()[0];
@@ -134,9 +157,9 @@ nn::BatchLoss ae2_batch_loss(Ae2& ae2, const Ae2Batch& batch, double lambda, Spa
                       static_cast<float>(batch.term_codes[k].shape()[0]));
 
   nn::BatchLoss loss;
-  loss.outer_is_affine = terms == 0;
+  loss.outer_is_affine = terms == 0 && logit_terms == 0;
   const bool with_signed = diagonal == SparsityDiagonal::kAbsMean;
-  loss.statistics = [&ae2, &batch, parts, terms, d, scale_r, scale_k, with_signed](
+  loss.statistics = [&ae2, &batch, parts, terms, logit_terms, d, scale_r, scale_k, with_signed](
                         std::size_t p, bool create_graph) {
     // rows of this part: [reconstruction | term 0 | term 1 | ...]
     const Tensor y_r = part_of(batch.reconstruction, p, parts);
@@ -157,10 +180,12 @@ nn::BatchLoss ae2_batch_loss(Ae2& ae2, const Ae2Batch& batch, double lambda, Spa
       rows += s;
     std::vector<Tensor> stats;
     // reconstruction: mean squared error per sample on its rows, 0 elsewhere
-    Tensor recon;
-    if (y_r.defined())
+    Tensor recon, z_r;
+    if (y_r.defined()) {
+      z_r = ae2.encode(y_r);
       recon = nn::mul_scalar(
-          nn::mean(nn::square(nn::sub(ae2(y_r), ae2.coordinates(y_r))), {1, 2, 3}), scale_r);
+          nn::mean(nn::square(nn::sub(ae2.decode(z_r), ae2.coordinates(y_r))), {1, 2, 3}), scale_r);
+    }
     stats.push_back(
         join({recon, rows > sizes[0] ? Tensor::zeros(Shape{rows - sizes[0]}) : Tensor()}));
     // term k's rows of `per_term`, zeros elsewhere: |J_g^T v_k| first, then the signed ones
@@ -176,15 +201,33 @@ nn::BatchLoss ae2_batch_loss(Ae2& ae2, const Ae2Batch& batch, double lambda, Spa
     place(jtv);
     if (with_signed)
       place(signed_jtv);
+    // the logit term's moments [z, z^2, z l, l, l^2] on the reconstruction rows, 0 elsewhere
+    for (std::size_t k = 0; k < logit_terms; ++k) {
+      Tensor moments;
+      if (y_r.defined()) {
+        const std::int64_t n = sizes[0];
+        const Tensor z = nn::slice(z_r, 1, batch.targets[k], batch.targets[k] + 1);
+        const Tensor l = nn::reshape(part_of(batch.term_logits[k], p, parts), Shape{n, 1});
+        moments = nn::mul_scalar(nn::concat({z, nn::square(z), nn::mul(z, l), l, nn::square(l)}, 1),
+                                 scale_r);
+      }
+      stats.push_back(
+          join({moments, rows > sizes[0] ? Tensor::zeros(Shape{rows - sizes[0], 5}) : Tensor()}));
+    }
     return stats;
   };
   const std::vector<std::int64_t> targets = batch.targets;
-  loss.outer = [terms, lambda, norm, targets, with_signed](const std::vector<Tensor>& means) {
+  const float logit_weight = static_cast<float>(batch.logit_weight);
+  loss.outer = [terms, logit_terms, lambda, norm, targets, with_signed,
+                logit_weight](const std::vector<Tensor>& means) {
     Tensor l = means[0];
     for (std::size_t k = 0; k < terms; ++k)
       l = nn::add(l, nn::mul_scalar(sparsity_penalty(means[1 + k], targets[k], norm,
                                                      with_signed ? means[1 + terms + k] : Tensor()),
                                     static_cast<float>(lambda)));
+    const std::size_t first_logit = means.size() - logit_terms;
+    for (std::size_t k = 0; k < logit_terms; ++k)
+      l = nn::add(l, nn::mul_scalar(logit_correlation_loss(means[first_logit + k]), logit_weight));
     return l;
   };
   return loss;

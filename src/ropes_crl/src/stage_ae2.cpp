@@ -71,6 +71,8 @@ bool train_ae2(const ExperimentConfig& config, const TrainingData& data, const S
     term_samplers.emplace_back(
         static_cast<std::int64_t>(scores.rows[k].size()), t.sparsity_batch_size,
         derive_seed(options.seed, "ae2.scores." + model.name + "." + config.joints[k]));
+  // ae2.logit_loss (an extension) on the models with sparsity terms, never the lambda = 0 one
+  const bool logit_term = t.logit_loss.weight > 0 && !model.terms.empty();
   Progress progress(stage, t.steps, first, options.progress_bar, config.log_every, board);
   Clock::time_point window = Clock::now();
   std::int64_t window_samples = 0;
@@ -84,14 +86,18 @@ bool train_ae2(const ExperimentConfig& config, const TrainingData& data, const S
       return false;
     }
     Ae2Batch batch;
-    batch.reconstruction = data.codes_of(recon.rows(s));
+    const std::vector<std::int64_t> recon_rows = recon.rows(s);
+    batch.reconstruction = data.codes_of(recon_rows);
     for (std::size_t i = 0; i < model.terms.size(); ++i) {
       const std::size_t k = model.terms[i];
       const std::vector<std::int64_t> picked = term_samplers[i].rows(s);
       batch.term_codes.push_back(data.codes_of(scores.dataset_rows(k, picked)));
       batch.term_scores.push_back(scores.scores_of(k, picked));
       batch.targets.push_back(static_cast<std::int64_t>(k));
+      if (logit_term)
+        batch.term_logits.push_back(scores.logits_of(k, recon_rows));
     }
+    batch.logit_weight = logit_term ? t.logit_loss.weight : 0.0;
     std::size_t parts = 1;
     const nn::BatchLoss loss =
         ae2_batch_loss(net, batch, model.lambda, t.norm, t.micro_batch, &parts, t.diagonal);
@@ -118,6 +124,18 @@ bool train_ae2(const ExperimentConfig& config, const TrainingData& data, const S
         for (std::size_t i = 0; i < model.terms.size(); ++i)
           rows[config.joints[model.terms[i]]] = r.means[1 + i];
       rec["sparsity_rows"] = rows;
+      if (logit_term) {  // the batch correlation of each latent with its LDR's logit
+        nlohmann::json corr = nlohmann::json::object();
+        const std::size_t first_logit = r.means.size() - model.terms.size();
+        for (std::size_t i = 0; i < model.terms.size(); ++i) {
+          const std::vector<float>& mf = r.means[first_logit + i];
+          const std::vector<double> m(mf.begin(), mf.end());
+          corr[config.joints[model.terms[i]]] =
+              (m[2] - m[0] * m[3]) /
+              std::sqrt(std::max((m[1] - m[0] * m[0]) * (m[4] - m[3] * m[3]), 0.0) + 1e-12);
+        }
+        rec["logit_correlation"] = corr;
+      }
       metrics.append(rec);
       window = Clock::now();
       window_samples = 0;

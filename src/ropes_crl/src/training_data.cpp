@@ -6,6 +6,8 @@
 #include <ropes_nn/checkpoint.hpp>
 #include <ropes_nn/ops.hpp>
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <map>
 #include <set>
@@ -190,6 +192,39 @@ nn::Tensor TrainingData::training_anchor_codes() const {
   return codes_of(picked);
 }
 
+namespace {
+
+// The LDR's logit of every row of `data`, standardised over the training anchors' rows (a
+// constant logit stays 0 after its mean is taken).
+std::vector<float> standardised_logits(Ldr& ldr, const TrainingData& data) {
+  nn::GradModeGuard no_grad(false);
+  std::vector<float> logits(static_cast<std::size_t>(data.rows));
+  for (std::int64_t b = 0; b < data.rows; b += 512) {
+    std::vector<std::int64_t> part;
+    for (std::int64_t r = b; r < std::min(data.rows, b + 512); ++r)
+      part.push_back(r);
+    const nn::Tensor l = ldr(data.codes_of(part));
+    std::copy_n(l.data(), l.numel(), logits.data() + b);
+  }
+  double sum = 0, sum_sq = 0;
+  std::int64_t n = 0;
+  for (std::int64_t r = 0; r < data.rows; ++r)
+    if (!data.held_out_anchor(r)) {
+      const double v = logits[static_cast<std::size_t>(r)];
+      sum += v;
+      sum_sq += v * v;
+      ++n;
+    }
+  const double mean = n > 0 ? sum / static_cast<double>(n) : 0.0;
+  const double var = n > 0 ? std::max(0.0, sum_sq / static_cast<double>(n) - mean * mean) : 0.0;
+  const double scale = var > 0 ? 1.0 / std::sqrt(var) : 1.0;
+  for (float& v : logits)
+    v = static_cast<float>((v - mean) * scale);
+  return logits;
+}
+
+}  // namespace
+
 ScoreTable ScoreTable::compute(const ExperimentConfig& config, const TrainingData& data,
                                const fs::path& run_dir, const CodeStandardization* ae2_map) {
   ScoreTable t;
@@ -226,8 +261,18 @@ ScoreTable ScoreTable::compute(const ExperimentConfig& config, const TrainingDat
     }
     t.rows.push_back(std::move(rows));
     t.values.push_back(std::move(values));
+    if (config.ae2_training.logit_loss.weight > 0)
+      t.logits.push_back(standardised_logits(ldr, data));
   }
   return t;
+}
+
+nn::Tensor ScoreTable::logits_of(std::size_t joint, const std::vector<std::int64_t>& at) const {
+  std::vector<float> out;
+  out.reserve(at.size());
+  for (std::int64_t r : at)
+    out.push_back(logits.at(joint)[static_cast<std::size_t>(r)]);
+  return nn::Tensor(nn::Shape{static_cast<std::int64_t>(at.size())}, std::move(out));
 }
 
 std::vector<std::int64_t> ScoreTable::dataset_rows(std::size_t joint,

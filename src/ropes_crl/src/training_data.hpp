@@ -64,6 +64,9 @@ struct ScoreTable {
   std::vector<std::vector<std::int64_t>> rows;  ///< per joint: dataset rows
   std::vector<std::vector<float>> values;       ///< per joint: [rows, C, 8, 8]
   std::vector<std::int64_t> code_shape;
+  /// per joint, with ae2.logit_loss only: LDR_k's logit of every dataset row, standardised
+  /// over the training anchors' rows (mean 0, variance 1); empty otherwise
+  std::vector<std::vector<float>> logits;
 
   /// `ae2_map`: AE2's input map when it standardises its codes (the scores are then moved
   /// to its coordinates before any unit normalisation), else null.
@@ -73,6 +76,8 @@ struct ScoreTable {
   std::vector<std::int64_t> dataset_rows(std::size_t joint,
                                          const std::vector<std::int64_t>& picked) const;
   nn::Tensor scores_of(std::size_t joint, const std::vector<std::int64_t>& picked) const;
+  /// the standardised logits of `joint` at the dataset rows `at`: [at.size()]
+  nn::Tensor logits_of(std::size_t joint, const std::vector<std::int64_t>& at) const;
 };
 
 }  // namespace ropes::crl::detail

@@ -182,6 +182,18 @@ TEST(ExperimentConfig, ErrorsNameTheFileTheFieldAndTheValue) {
   j["ldr"]["pair_loss"] = {{"weight", 2}};
   EXPECT_DOUBLE_EQ(ExperimentConfig::from_json(j, "test.json").ldr_training.pair_loss.weight, 2.0);
   EXPECT_DOUBLE_EQ(c.ldr_training.pair_loss.weight, 0.0) << "off when absent";
+  // AE2's logit term (an extension, off when absent): {"weight" > 0}
+  j = c.raw;
+  j["ae2"]["logit_loss"] = {{"weight", -1}};
+  EXPECT_NE(error_of(j).find("config.ae2.logit_loss.weight: expected in (0, 1e6], got -1"),
+            std::string::npos)
+      << error_of(j);
+  j["ae2"]["logit_loss"] = {{"weight", 0.5}, {"target", 1}};
+  EXPECT_NE(error_of(j).find("config.ae2.logit_loss.target: unknown key"), std::string::npos)
+      << error_of(j);
+  j["ae2"]["logit_loss"] = {{"weight", 0.5}};
+  EXPECT_DOUBLE_EQ(ExperimentConfig::from_json(j, "test.json").ae2_training.logit_loss.weight, 0.5);
+  EXPECT_DOUBLE_EQ(c.ae2_training.logit_loss.weight, 0.0) << "off when absent";
   j = c.raw;
   j["ae2"]["input_normalization"] = 1;
   EXPECT_NE(error_of(j).find("config.ae2.input_normalization"), std::string::npos) << error_of(j);

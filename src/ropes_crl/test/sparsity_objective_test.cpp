@@ -81,18 +81,47 @@ double reference_loss(Fixture& f, double lambda, SparsityNorm norm, SparsityDiag
     loss +=
         lambda * score_sparsity_loss(rows, static_cast<int>(f.batch.targets[k]), norm, diagonal);
   }
+  // ae2.logit_loss: 1 - the Pearson correlation of latent t_k with logit set k over the
+  // reconstruction samples, from double sums (not the autodiff moments)
+  if (f.batch.logit_weight > 0) {
+    const Tensor z = f.net->encode(y);
+    const std::int64_t n = z.shape()[0], d = z.shape()[1];
+    for (std::size_t k = 0; k < f.batch.term_logits.size(); ++k) {
+      double sz = 0, sl = 0;
+      for (std::int64_t i = 0; i < n; ++i) {
+        sz += z.data()[i * d + f.batch.targets[k]];
+        sl += f.batch.term_logits[k].data()[i];
+      }
+      double cov = 0, vz = 0, vl = 0;
+      for (std::int64_t i = 0; i < n; ++i) {
+        const double a = z.data()[i * d + f.batch.targets[k]] - sz / static_cast<double>(n);
+        const double b = f.batch.term_logits[k].data()[i] - sl / static_cast<double>(n);
+        cov += a * b;
+        vz += a * a;
+        vl += b * b;
+      }
+      loss += f.batch.logit_weight * (1.0 - cov / std::sqrt(vz * vl));
+    }
+  }
   return loss;
+}
+
+// the logit term's inputs: a logit per reconstruction sample per term
+void add_logits(Fixture& f, double weight) {
+  f.batch.logit_weight = weight;
+  for (std::uint64_t k = 0; k < f.batch.targets.size(); ++k)
+    f.batch.term_logits.push_back(normal(Shape{f.batch.reconstruction.shape()[0]}, 30 + k));
 }
 
 // The gradient the training step uses (two phases over 2 micro-batches) against central
 // finite differences of the double-precision reference loss, every entry of the trained
 // parameters.
 void expect_gradient_matches(Fixture& f, SparsityNorm norm, SparsityDiagonal diagonal,
-                             const std::string& label) {
-  const double lambda = 0.7;
+                             const std::string& label, double lambda = 0.7,
+                             std::int64_t micro_batch = 9) {
   std::size_t parts = 0;
   const ropes::nn::BatchLoss loss =
-      ae2_batch_loss(*f.net, f.batch, lambda, norm, 9, &parts, diagonal);
+      ae2_batch_loss(*f.net, f.batch, lambda, norm, micro_batch, &parts, diagonal);
   ASSERT_EQ(parts, 2u);
   std::vector<Tensor> params;
   for (const auto& named : f.net->trained_parameters())
@@ -150,6 +179,47 @@ TEST(SparsityObjective, GradientMatchesFiniteDifferencesWithStandardizedCodes) {
     expect_gradient_matches(f, norm, SparsityDiagonal::kAbsMean,
                             std::string(to_string(norm)) + ", unit, abs_mean, standardize");
   }
+}
+
+// ae2.logit_loss (an extension) beside the sparsity terms, and alone (lambda 0): its
+// correlation moments are batch means, so the finite differences of the whole-batch
+// reference check the split into micro-batches too
+TEST(SparsityObjective, GradientMatchesFiniteDifferencesWithTheLogitTerm) {
+  for (const double lambda : {0.7, 0.0}) {
+    Fixture f = make("unit");
+    add_logits(f, 0.5);
+    expect_gradient_matches(f, SparsityNorm::kL2Squared, SparsityDiagonal::kAbsMean,
+                            "l2sq, unit, abs_mean, logit 0.5, lambda " + std::to_string(lambda),
+                            lambda, lambda > 0 ? 9 : 3);  // 17 rows, or the 5 reconstruction ones
+  }
+}
+
+TEST(SparsityObjective, TheLogitTermIsOneMinusTheCorrelation) {
+  // a perfectly correlated latent gives 0, an anti-correlated one 2, a constant one 1
+  const auto loss_of = [](std::vector<float> m) {
+    return logit_correlation_loss(Tensor(Shape{5}, std::move(m))).item();
+  };
+  // z = 2 l + 1 with E l = 0.5, E l^2 = 1.25: E z = 2, E z^2 = 4 E l^2 + 4 E l + 1 = 8,
+  // E z l = 2 E l^2 + E l = 3
+  EXPECT_NEAR(loss_of({2.0f, 8.0f, 3.0f, 0.5f, 1.25f}), 0.0, 1e-6);
+  EXPECT_NEAR(loss_of({-2.0f, 8.0f, -3.0f, 0.5f, 1.25f}), 2.0, 1e-6);
+  EXPECT_NEAR(loss_of({3.0f, 9.0f, 1.5f, 0.5f, 1.25f}), 1.0, 1e-6);
+  // a set per term, of the reconstruction samples' count
+  Fixture f = make("unit");
+  add_logits(f, 1.0);
+  const auto expect_refused = [&f](const std::string& what, const std::string& message) {
+    std::size_t parts = 0;
+    try {
+      ae2_batch_loss(*f.net, f.batch, 1.0, SparsityNorm::kL2Squared, 9, &parts);
+      ADD_FAILURE() << what << " was accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(message), std::string::npos) << e.what();
+    }
+  };
+  f.batch.term_logits.pop_back();
+  expect_refused("one logit set for two terms", "1 logit sets for 2 terms");
+  f.batch.term_logits = {normal(Shape{4}, 40), normal(Shape{5}, 41)};
+  expect_refused("a logit set of 4 for 5 samples", "logit set 0 is [4]; expected [5]");
 }
 
 // the batch mean sits inside the norm: any micro-batch split gives the whole-batch gradient

@@ -75,8 +75,9 @@ TEST_P(TrainerAe1PairHeads, TrainWithAe1AndLogTheirTerm) {
 INSTANTIATE_TEST_SUITE_P(Heads, TrainerAe1PairHeads, ::testing::Values("ldr", "linear"));
 
 // The extensions read regimes and anchors, never an angle: on a dataset whose angles column
-// is noise (the same images, regimes and anchors) a run with AE1's pair heads and the LDRs'
-// pair loss comes out byte for byte the same in every weight file of every stage. And the
+// is noise (the same images, regimes and anchors) a run with AE1's pair heads, the LDRs'
+// pair loss and AE2's logit term comes out byte for byte the same in every weight file of
+// every stage. And the
 // extensions do change the networks, so the comparison is not one of untouched ones.
 TEST_F(TrainerAe1, TheExtensionsReadNoAngle) {
   const fs::path noise = dir_ / "noise";
@@ -88,7 +89,8 @@ TEST_F(TrainerAe1, TheExtensionsReadNoAngle) {
   add_pair_heads(config_);
   nlohmann::json raw = config_.raw;
   raw["ldr"]["pair_loss"] = {{"weight", 1.0}};
-  config_ = ExperimentConfig::from_json(raw, "1c-tiny with both extensions");
+  raw["ae2"]["logit_loss"] = {{"weight", 1.0}};
+  config_ = ExperimentConfig::from_json(raw, "1c-tiny with the extensions");
   const fs::path extended = train_to("extended", 3, options_);
   TrainOptions o = options_;
   o.last_stage = 3;

@@ -177,6 +177,11 @@ void describe_run(RunEvaluation& ev, const crl::RunDirectory& run,
         "ldr.pair_loss: each LDR also trained to order its joint's two interventions at one "
         "anchor (weight " +
         fmt(w, 3) + "; regimes and anchors only, no angle)");
+  if (const double w = config.ae2_training.logit_loss.weight; w > 0)
+    ev.extensions.push_back(
+        "ae2.logit_loss: each joint's AE2 latent also trained to follow its frozen LDR's logit "
+        "(weight " +
+        fmt(w, 3) + " on 1 - their batch correlation; regimes only, no angle)");
 }
 
 // the test set's observational rows, and where each of the run's joints is among its angles

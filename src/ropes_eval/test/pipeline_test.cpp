@@ -981,13 +981,14 @@ TEST_F(Pipeline, SuitesGenerateTheirTestDataOnceAndReportEverySuite) {
   EXPECT_TRUE(rd["suites"][1]["results"]["occlusion_diagnostics"]["split"].is_null())
       << rd["suites"][1]["results"]["occlusion_diagnostics"].dump();
 
-  // AE1 trained with the occlusion augmentation (an extension): other AE1 weights than the
-  // clean run's, and the results say it is not the paper's method
+  // AE1 trained with the occlusion augmentation and AE2 with the logit term (extensions):
+  // other AE1 weights than the clean run's, and the results say it is not the paper's method
   EXPECT_TRUE(r["suites"][0]["results"]["extensions"].empty());
   const fs::path aug = dir_ / "suite_run_augmented";
   const Output ta = train(aug.string(),
                           "--set 'ae1.occlusion_augmentation={\"probability\": 0.5, "
-                          "\"min_size\": 4, \"max_size\": 16}'");
+                          "\"min_size\": 4, \"max_size\": 16}' "
+                          "--set 'ae2.logit_loss={\"weight\": 0.5}'");
   ASSERT_EQ(ta.rc, 0) << ta.text;
   EXPECT_NE(bytes_of(aug / "ae1.safetensors"), bytes_of(run_dir / "ae1.safetensors"));
   const Output ea = run(kEval + " --run " + aug.string() + " --data " + test_dir.string() +
@@ -999,6 +1000,11 @@ TEST_F(Pipeline, SuitesGenerateTheirTestDataOnceAndReportEverySuite) {
   EXPECT_NE(mda.find("- **extension, not the paper's method**: ae1.occlusion_augmentation: AE1 "
                      "trained to reconstruct clean images from images with white squares "
                      "(probability 0.50, 4 to 16 px)"),
+            std::string::npos)
+      << mda;
+  EXPECT_NE(mda.find("- **extension, not the paper's method**: ae2.logit_loss: each joint's AE2 "
+                     "latent also trained to follow its frozen LDR's logit (weight 0.500 on 1 - "
+                     "their batch correlation; regimes only, no angle)"),
             std::string::npos)
       << mda;
 

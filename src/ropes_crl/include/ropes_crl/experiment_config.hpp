@@ -119,6 +119,18 @@ struct LdrTraining {
 };
 
 /// Stage 3: AE2, reconstruction + lambda * sparsity.
+/// An extension of AE2's objective, not the paper's method: each sparsity term k also asks
+/// the latent t_k that estimates joint k to follow LDR_k's logit, adding `weight` times
+/// 1 - corr(z_{t_k}, LDR_k(y)), the batch correlation over the reconstruction samples. The
+/// sparsity term sees only the LDR's gradient at joint k's samples, scaled to unit length; the
+/// logit itself (log p_2/p_1 of the joint's two interventions) is a function of joint k's
+/// angle alone when the joints are independent. LDR_k is stage 2's frozen classifier, trained
+/// on regimes only: no angle reaches the term. The config's optional ae2.logit_loss
+/// {"weight"}; off when absent.
+struct Ae2LogitLoss {
+  double weight = 0;  ///< 0: off
+};
+
 struct Ae2Training {
   std::string mode = "per_joint";  ///< "per_joint" (one AE2 a joint) or "joint" (one for all)
   double lambda = 1.0;
@@ -134,6 +146,7 @@ struct Ae2Training {
   std::int64_t micro_batch = 128;  ///< rows of one micro-batch (reconstruction + sparsity)
   OptimizerConfig optimizer;
   bool lambda0_baseline = true;  ///< also train the lambda = 0 autoencoder (a baseline)
+  Ae2LogitLoss logit_loss;       ///< an extension, off by default (the lambda = 0 AE2 never)
 };
 
 struct ExperimentConfig {

@@ -46,7 +46,15 @@ struct Ae2Batch {
   std::vector<Tensor> term_codes;     ///< y [n_k, C, 8, 8] per term
   std::vector<Tensor> term_scores;    ///< v [n_k, C, 8, 8] per term
   std::vector<std::int64_t> targets;  ///< t_k per term
+  /// ae2.logit_loss (an extension): per term, LDR_k's standardised logit at each
+  /// reconstruction sample ([n_r]); empty, or logit_weight 0, for none
+  std::vector<Tensor> term_logits;
+  double logit_weight = 0;
 };
+
+/// 1 - corr(z, l) from the batch means m = [E z, E z^2, E z l, E l, E l^2] ([5]): the logit
+/// term of one sparsity term. A constant z or l has correlation 0 (eps 1e-12 under the root).
+Tensor logit_correlation_loss(const Tensor& m);
 
 /// The objective over `batch` split into micro-batches of at most `micro_batch` rows (all
 /// sets split into the same number of parts). Statistic 0 is the reconstruction error,
@@ -55,7 +63,9 @@ struct Ae2Batch {
 /// receives the number of parts (StepOptions::micro_batches). The returned loss refers to
 /// `ae2` and `batch`: both must outlive it.
 /// With SparsityDiagonal::kAbsMean the signed J_g^T v_k follow as statistics 1 + K + k
-/// (K terms), so statistic 1 + k is row k of the sparsity matrix in both forms.
+/// (K terms), so statistic 1 + k is row k of the sparsity matrix in both forms. With the
+/// logit term the last K statistics are its moments per term (logit_correlation_loss), on
+/// the reconstruction samples; it applies whatever lambda is.
 nn::BatchLoss ae2_batch_loss(Ae2& ae2, const Ae2Batch& batch, double lambda, SparsityNorm norm,
                              std::int64_t micro_batch, std::size_t* micro_batches,
                              SparsityDiagonal diagonal = SparsityDiagonal::kMeanAbs);
