@@ -128,11 +128,8 @@ bool train_ae2(const ExperimentConfig& config, const TrainingData& data, const S
         nlohmann::json corr = nlohmann::json::object();
         const std::size_t first_logit = r.means.size() - model.terms.size();
         for (std::size_t i = 0; i < model.terms.size(); ++i) {
-          const std::vector<float>& mf = r.means[first_logit + i];
-          const std::vector<double> m(mf.begin(), mf.end());
-          corr[config.joints[model.terms[i]]] =
-              (m[2] - m[0] * m[3]) /
-              std::sqrt(std::max((m[1] - m[0] * m[0]) * (m[4] - m[3] * m[3]), 0.0) + 1e-12);
+          const Tensor m(Shape{5}, r.means[first_logit + i]);
+          corr[config.joints[model.terms[i]]] = 1.0 - logit_correlation_loss(m).item();
         }
         rec["logit_correlation"] = corr;
       }
