@@ -172,40 +172,46 @@ void train_ae1(const ExperimentConfig& config, const TrainingData& data, const f
     const Tensor images = nn::reshape(batch.tensor("images"), Shape{n, 1, side, side});
     // with the occlusion augmentation (an extension), AE1 sees squares, and its target is the
     // clean image; the squares of step s come from stream s, so a resumed run draws the same
+    std::vector<char> squared;  // which images got a square
     const Tensor inputs =
         t.occlusion_augmentation.probability > 0
             ? occlusion_augmented(images, t.occlusion_augmentation, augmentation_seed,
-                                  static_cast<std::uint64_t>(adam.steps()))
+                                  static_cast<std::uint64_t>(adam.steps()), &squared)
             : images;
     std::vector<nn::RowRange> parts;
     nn::BatchLoss loss;
     Tensor observational, observational_inputs, masks;  // outlive the loss, which reads them
     if (pairs) {
-      // each image with its anchor's observational image: micro-batches of pairs
+      // each image with its anchor's observational image: micro-batches of pairs. A pair
+      // occluded together counts in the reconstruction term only: the change a square may
+      // hide is not asked of AE1
       std::vector<std::int64_t> partners;
       nn::Buffer mask(static_cast<std::size_t>(n));
       for (std::size_t k = 0; k < batch.rows.size(); ++k) {
         const std::int64_t row = batch.rows[k];
         partners.push_back(data.observational_row[static_cast<std::size_t>(row)]);
-        for (std::int64_t c = 0; c < config.cameras; ++c)
-          mask[k * static_cast<std::size_t>(config.cameras) + static_cast<std::size_t>(c)] =
-              partners.back() == row ? 0.0f : 1.0f;
+        for (std::int64_t c = 0; c < config.cameras; ++c) {
+          const std::size_t i =
+              k * static_cast<std::size_t>(config.cameras) + static_cast<std::size_t>(c);
+          mask[i] = partners.back() == row || (!squared.empty() && squared[i] != 0) ? 0.0f : 1.0f;
+        }
       }
       const core::NpyArray raw = data.reader.read_rows_at("images", partners);
       nn::Buffer pixels(raw.data.size());
       for (std::size_t i = 0; i < pixels.size(); ++i)
         pixels[i] = static_cast<float>(raw.data[i]) / 255.0f;
       observational = Tensor(Shape{n, 1, side, side}, std::move(pixels));
-      observational_inputs = t.occlusion_augmentation.probability > 0
-                                 ? occlusion_augmented(observational, t.occlusion_augmentation,
-                                                       partner_augmentation_seed,
-                                                       static_cast<std::uint64_t>(adam.steps()))
-                                 : observational;
+      observational_inputs =
+          t.occlusion_augmentation.probability > 0
+              ? occlusion_augmented_where(observational, squared, t.occlusion_augmentation,
+                                          partner_augmentation_seed,
+                                          static_cast<std::uint64_t>(adam.steps()))
+              : observational;
       masks = Tensor(Shape{n}, std::move(mask));
       parts = nn::split_rows(n, std::max<std::int64_t>(1, t.micro_batch / 2));
       loss = nn::mean_loss([&](std::size_t i) {
         const std::int64_t b = parts[i].begin, e = parts[i].end;
-        // with the occlusion augmentation AE1 sees squares in both; the targets are clean
+        // with the occlusion augmentation AE1 sees squares in both or neither; targets clean
         const Tensor x = nn::slice(images, 0, b, e), xo = nn::slice(observational, 0, b, e);
         return ae1_difference_loss(net(nn::slice(inputs, 0, b, e)),
                                    net(nn::slice(observational_inputs, 0, b, e)), x, xo,
@@ -343,8 +349,13 @@ namespace ropes::crl {
 
 using nn::Shape;
 
-Tensor occlusion_augmented(const Tensor& images, const OcclusionAugmentation& a, std::uint64_t seed,
-                           std::uint64_t step) {
+namespace {
+
+// the squares of occlusion_augmented(_where): per image, the coin (unless `given` decides),
+// the side, the column and the row from the stream (seed, step)
+Tensor paint_squares(const Tensor& images, const OcclusionAugmentation& a, std::uint64_t seed,
+                     std::uint64_t step, const std::vector<char>* given,
+                     std::vector<char>* squared) {
   const Shape& shape = images.shape();
   if (shape.rank() != 4 || shape[1] != 1 || shape[2] != shape[3] || a.min_size < 1 ||
       a.max_size < a.min_size || a.max_size > shape[2])
@@ -353,6 +364,10 @@ Tensor occlusion_augmented(const Tensor& images, const OcclusionAugmentation& a,
                                 std::to_string(a.max_size) +
                                 " px; expected [n, 1, S, S] and 1 <= min_size <= max_size <= S");
   const std::int64_t n = shape[0], side = shape[2];
+  if (given != nullptr && static_cast<std::int64_t>(given->size()) != n)
+    throw std::invalid_argument("occlusion_augmented_where: " + std::to_string(given->size()) +
+                                " entries for " + std::to_string(n) +
+                                " images; expected one per image");
   core::PhiloxStream rng(seed, step);
   Tensor out = images.detach();
   float* px = out.mutable_data();
@@ -361,15 +376,34 @@ Tensor occlusion_augmented(const Tensor& images, const OcclusionAugmentation& a,
     return std::min<std::int64_t>(hi,
                                   lo + static_cast<std::int64_t>(rng.uniform_double() * places));
   };
+  if (squared != nullptr)
+    squared->assign(static_cast<std::size_t>(n), 0);
   for (std::int64_t i = 0; i < n; ++i) {
-    if (!(rng.uniform_double() < a.probability))
+    const bool square = given != nullptr ? (*given)[static_cast<std::size_t>(i)] != 0
+                                         : rng.uniform_double() < a.probability;
+    if (!square)
       continue;
+    if (squared != nullptr)
+      (*squared)[static_cast<std::size_t>(i)] = 1;
     const std::int64_t size = uniform_int(a.min_size, a.max_size);
     const std::int64_t x = uniform_int(0, side - size), y = uniform_int(0, side - size);
     for (std::int64_t r = y; r < y + size; ++r)
       std::fill_n(px + (i * side + r) * side + x, size, 1.0f);
   }
   return out;
+}
+
+}  // namespace
+
+Tensor occlusion_augmented(const Tensor& images, const OcclusionAugmentation& a, std::uint64_t seed,
+                           std::uint64_t step, std::vector<char>* squared) {
+  return paint_squares(images, a, seed, step, nullptr, squared);
+}
+
+Tensor occlusion_augmented_where(const Tensor& images, const std::vector<char>& squared,
+                                 const OcclusionAugmentation& a, std::uint64_t seed,
+                                 std::uint64_t step) {
+  return paint_squares(images, a, seed, step, &squared, nullptr);
 }
 
 Tensor ae1_difference_loss(const Tensor& recon, const Tensor& recon_o, const Tensor& x,

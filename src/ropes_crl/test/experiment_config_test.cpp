@@ -270,6 +270,43 @@ TEST(OcclusionAugmentation, PaintsOneSquareAnImageAtTheProbabilityAndTheSameOnes
   EXPECT_THROW(occlusion_augmented(black, a, 7, 3), std::invalid_argument);
 }
 
+// With the difference loss a pair is occluded together: occlusion_augmented reports exactly
+// the images it painted (read back from black images), occlusion_augmented_where paints those
+// and no other, each with a square of its own (its side and place from its own stream), and
+// a `squared` of another length is refused.
+TEST(OcclusionAugmentation, APairIsOccludedTogether) {
+  const std::int64_t n = 200, side = 32;
+  const nn::Tensor black(nn::Shape{n, 1, side, side},
+                         nn::Buffer(static_cast<std::size_t>(n * side * side), 0.0f));
+  const OcclusionAugmentation a{0.5, 4, 12};
+  auto painted = [&](const std::vector<float>& v, std::int64_t i) {
+    return std::any_of(v.begin() + i * side * side, v.begin() + (i + 1) * side * side,
+                       [](float x) { return x != 0.0f; });
+  };
+  std::vector<char> squared;
+  const std::vector<float> samples = occlusion_augmented(black, a, 7, 3, &squared).to_vector();
+  ASSERT_EQ(squared.size(), static_cast<std::size_t>(n));
+  EXPECT_EQ(samples, occlusion_augmented(black, a, 7, 3).to_vector()) << "reporting changed it";
+  const std::vector<float> partners =
+      occlusion_augmented_where(black, squared, a, 8, 3).to_vector();
+  std::int64_t count = 0, same_place = 0;
+  for (std::int64_t i = 0; i < n; ++i) {
+    const bool s = squared[static_cast<std::size_t>(i)] != 0;
+    count += s;
+    EXPECT_EQ(painted(samples, i), s) << "image " << i;
+    EXPECT_EQ(painted(partners, i), s) << "partner " << i;
+    same_place +=
+        s && std::equal(samples.begin() + i * side * side, samples.begin() + (i + 1) * side * side,
+                        partners.begin() + i * side * side);
+  }
+  EXPECT_GT(count, 0);
+  EXPECT_LT(count, n);
+  EXPECT_LT(same_place, count / 4) << "the partners' squares are drawn from a stream of their own";
+  EXPECT_EQ(occlusion_augmented_where(black, squared, a, 8, 3).to_vector(), partners);
+  squared.pop_back();
+  EXPECT_THROW(occlusion_augmented_where(black, squared, a, 8, 3), std::invalid_argument);
+}
+
 // AE1's difference loss on three hand-made pairs of 1x1x2 images, each value worked out by hand:
 //   pair 0: reconstruction (0.25^2 / 2 + 0.5^2 / 2) / 2 = 0.078125; change [0.5, 0] (its
 //           squared size 0.25 is raised to the floor 1); change error [0.25, -0.5] - [0.5, 0]

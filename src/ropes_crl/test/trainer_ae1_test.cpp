@@ -75,10 +75,10 @@ TEST_P(TrainerAe1PairHeads, TrainWithAe1AndLogTheirTerm) {
 INSTANTIATE_TEST_SUITE_P(Heads, TrainerAe1PairHeads, ::testing::Values("ldr", "linear"));
 
 // The extensions read regimes and anchors, never an angle: on a dataset whose angles column
-// is noise (the same images, regimes and anchors) a run with AE1's pair heads, the LDRs'
-// pair loss and AE2's logit term comes out byte for byte the same in every weight file of
-// every stage. And the
-// extensions do change the networks, so the comparison is not one of untouched ones.
+// is noise (the same images, regimes and anchors) a run with AE1's pair heads, occlusion
+// augmentation and difference loss, the LDRs' pair loss and AE2's logit term comes out byte
+// for byte the same in every weight file of every stage. And the extensions do change the
+// networks, so the comparison is not one of untouched ones.
 TEST_F(TrainerAe1, TheExtensionsReadNoAngle) {
   const fs::path noise = dir_ / "noise";
   write_two_bar_dataset(noise, config_.cameras, config_.image_size, true, true);
@@ -90,6 +90,9 @@ TEST_F(TrainerAe1, TheExtensionsReadNoAngle) {
   nlohmann::json raw = config_.raw;
   raw["ldr"]["pair_loss"] = {{"weight", 1.0}};
   raw["ae2"]["logit_loss"] = {{"weight", 1.0}};
+  raw["ae1"]["occlusion_augmentation"] = {
+      {"probability", 0.5}, {"min_size", 2}, {"max_size", config_.image_size / 2}};
+  raw["ae1"]["difference_loss"] = {{"weight", 0.05}};
   config_ = ExperimentConfig::from_json(raw, "1c-tiny with the extensions");
   const fs::path extended = train_to("extended", 3, options_);
   TrainOptions o = options_;

@@ -52,8 +52,11 @@ struct OcclusionAugmentation {
 /// change an intervention makes, relative to that change, so that every intervention counts
 /// alike however few pixels it moves. It uses the regimes (which samples share an anchor),
 /// as the LDRs do, and no labels. The config's optional ae1.difference_loss {"weight"}; off
-/// when absent. With the occlusion augmentation both images of a pair get squares (the
-/// partners' from a stream of their own) and the targets stay clean.
+/// when absent. With the occlusion augmentation a pair is occluded together: when the
+/// sample's image gets a square its partner gets one too (its own side and place, from a
+/// stream of its own), the targets stay clean, and that pair counts in the reconstruction
+/// term only, since a change that a square may hide cannot be asked of AE1 and its error,
+/// relative to a small change, would be the squares' inpainting error.
 struct DifferenceLoss {
   double weight = 0;  ///< 0: off
 };

@@ -33,6 +33,7 @@
 #include <filesystem>
 #include <functional>
 #include <string>
+#include <vector>
 
 namespace ropes::crl {
 
@@ -71,10 +72,20 @@ void train(const ExperimentConfig& config, const std::filesystem::path& data_dir
 /// probability a.probability, has a square of a side uniform on [a.min_size, a.max_size] at a
 /// corner uniform on those that keep it inside set to 1 (white). Per image, in order, the
 /// Philox stream (seed, step) draws whether, the side, the column, then the row, so a step's
-/// squares are the same in a resumed run. Throws std::invalid_argument for another shape or
-/// sizes outside [1, S].
+/// squares are the same in a resumed run. When `squared` is given, it is set to 1 for each
+/// image that got a square and 0 for the others. Throws std::invalid_argument for another
+/// shape or sizes outside [1, S].
 nn::Tensor occlusion_augmented(const nn::Tensor& images, const OcclusionAugmentation& a,
-                               std::uint64_t seed, std::uint64_t step);
+                               std::uint64_t seed, std::uint64_t step,
+                               std::vector<char>* squared = nullptr);
+
+/// The same squares' draw for the images `squared` names (1: a square, 0: none; one entry per
+/// image), so that the partners of a pair are occluded together: per image with a square, in
+/// order, the Philox stream (seed, step) draws the side, the column, then the row. Throws
+/// std::invalid_argument as above, or when `squared` has another length.
+nn::Tensor occlusion_augmented_where(const nn::Tensor& images, const std::vector<char>& squared,
+                                     const OcclusionAugmentation& a, std::uint64_t seed,
+                                     std::uint64_t step);
 
 /// The per-pair loss of AE1's difference-loss variant (DifferenceLoss): for n images `x`
 /// [n, 1, S, S] (in [0, 1]), their anchors' observational images `xo`, AE1's reconstructions
