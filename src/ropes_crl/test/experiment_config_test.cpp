@@ -33,7 +33,8 @@ TEST(ExperimentConfig, EveryShippedConfigParses) {
     EXPECT_EQ(c.ldr.in_channels, c.cameras);
     ++count;
   }
-  EXPECT_EQ(count, 12);  // {1c, 2c, 2c_causal} x {tiny, small, small-plus, paper}
+  // {1c, 2c, 2c_causal} x {tiny, small, small-plus, paper}, and 2c-small-plus-occlusion
+  EXPECT_EQ(count, 13);
 }
 
 TEST(ExperimentConfig, ThePaperPresetIsTheAppendix) {
