@@ -107,6 +107,28 @@ TEST_F(TrainerAe1, TheExtensionsReadNoAngle) {
   }
 }
 
+// With occlusion augmentation and the difference loss, a pair whose images got squares
+// counts in the reconstruction term only. With every image occluded (probability 1) the
+// difference term's weight therefore changes nothing: weights 0.05 and 5 give the same codes.
+// With half of them occluded it does change them, so the comparison can fail.
+TEST_F(TrainerAe1, AnOccludedPairLeavesTheDifferenceTerm) {
+  const auto codes_with = [&](double probability, double weight, const std::string& name) {
+    nlohmann::json raw = config_.raw;
+    raw["ae1"]["occlusion_augmentation"] = {
+        {"probability", probability}, {"min_size", 2}, {"max_size", config_.image_size / 2}};
+    raw["ae1"]["difference_loss"] = {{"weight", weight}};
+    const ExperimentConfig saved = config_;
+    config_ = ExperimentConfig::from_json(raw, "1c-tiny, " + name);
+    const fs::path run = train_to(name, 1, options_);
+    config_ = saved;
+    return file_bytes(run / "codes.npy");
+  };
+  EXPECT_EQ(codes_with(1.0, 0.05, "all_small"), codes_with(1.0, 5.0, "all_large"))
+      << "a pair with squares reached the difference term";
+  EXPECT_NE(codes_with(0.5, 0.05, "half_small"), codes_with(0.5, 5.0, "half_large"))
+      << "the difference term's weight changed nothing with half of the images clean";
+}
+
 TEST_F(TrainerAe1, AStopInsideTheStageResumesToTheSameBytes) {
   const fs::path whole = train_to("whole", 1, options_);
   TrainOptions stopping = options_;

@@ -1322,12 +1322,6 @@ TEST_F(Pipeline, SmallPresetOneCameraReachesTheMeasuredMcc) {
   }
 }
 
-// A small-plus preset end to end (seed 0) against the MCC measured for it, suite by suite
-// (results.json's suite name, "id" or "id occlusion 32"): exactly on the build that measured
-// it (x86-64-v4, this compiler and Eigen), elsewhere at least the lowest of the seeds measured
-// (docs/results/). The witness is the paper's Table 1 (and its occlusion row) beside it in
-// results.json, as for the preset above. A sanitizer build leaves these to the test above,
-// which runs the same code cut short.
 // the joints of the 2C settings, in results.json's order
 [[maybe_unused]] const std::vector<std::string> kJoints2c = {
     "panda_joint1", "panda_joint2", "panda_joint3", "panda_joint4", "panda_joint5", "panda_joint6"};
@@ -1337,6 +1331,12 @@ struct SuitePin {
   std::vector<double> floors, measured_v4;
 };
 
+// A small-plus preset end to end (seed 0) against the MCC measured for it, suite by suite
+// (results.json's suite name, "id" or "id occlusion 32"): exactly on the build that measured
+// it (x86-64-v4, this compiler and Eigen), elsewhere at least the lowest of the seeds measured
+// (docs/results/). The witness is the paper's Table 1 (and its occlusion row) beside it in
+// results.json, as for the preset above. A sanitizer build leaves these to the test above,
+// which runs the same code cut short.
 [[maybe_unused]] void expect_small_plus_mcc(const std::string& config, const fs::path& out,
                                             const std::vector<std::string>& joints,
                                             const std::string& suites,
