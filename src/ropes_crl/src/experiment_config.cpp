@@ -216,15 +216,18 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
 
     // LDR
     const nlohmann::json& l = field(j, "config", "ldr");
-    reject_unknown_keys(l, "config.ldr",
-                        {"widths", "hidden", "batch_size", "max_epochs", "patience",
-                         "held_out_fraction", "optimizer", "input_normalization", "pair_loss"});
+    reject_unknown_keys(
+        l, "config.ldr",
+        {"widths", "hidden", "batch_size", "max_epochs", "patience", "held_out_fraction",
+         "optimizer", "input_normalization", "pair_loss", "members"});
     c.ldr.in_channels = c.code_channels();
     c.ldr.input_size = side;
     c.ldr.widths = get_ints(l, "config.ldr", "widths");
     c.ldr.hidden = get_int(l, "config.ldr", "hidden");
     if (l.contains("input_normalization"))  // optional: "none", the paper's, when absent
       c.ldr.input_normalization = get_string(l, "config.ldr", "input_normalization");
+    if (l.contains("members"))  // optional, an extension: one classifier (the paper's) when absent
+      c.ldr.members = get_int(l, "config.ldr", "members");
     if (const std::string p = c.ldr.problem(); !p.empty())
       throw std::invalid_argument("config." + p);
     c.ldr_training.batch_size = get_int(l, "config.ldr", "batch_size");

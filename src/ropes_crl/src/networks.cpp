@@ -278,6 +278,8 @@ std::string LdrSpec::problem() const {
            ", got " + std::to_string(input_size);
   if (hidden < 1)
     return "ldr.hidden: expected >= 1, got " + std::to_string(hidden);
+  if (members < 1 || members > 16)
+    return "ldr.members: expected 1 to 16 classifiers, got " + std::to_string(members);
   if (input_normalization != "none" && input_normalization != "standardize")
     return "ldr.input_normalization: expected \"none\" or \"standardize\", got \"" +
            input_normalization + "\"";
@@ -285,11 +287,14 @@ std::string LdrSpec::problem() const {
 }
 
 nlohmann::json LdrSpec::to_json() const {
-  return {{"in_channels", in_channels},
-          {"input_size", input_size},
-          {"widths", widths},
-          {"hidden", hidden},
-          {"input_normalization", input_normalization}};
+  nlohmann::json j = {{"in_channels", in_channels},
+                      {"input_size", input_size},
+                      {"widths", widths},
+                      {"hidden", hidden},
+                      {"input_normalization", input_normalization}};
+  if (members != 1)  // a single classifier's metadata stays as before the option
+    j["members"] = members;
+  return j;
 }
 
 LdrSpec LdrSpec::from_json(const nlohmann::json& j) {
@@ -302,6 +307,8 @@ LdrSpec LdrSpec::from_json(const nlohmann::json& j) {
   // weight files written before the option existed have no input map
   if (j.contains("input_normalization"))
     s.input_normalization = get_string(j, "ldr", "input_normalization");
+  if (j.contains("members"))  // absent: one classifier
+    s.members = get_int(j, "ldr", "members");
   if (const std::string p = s.problem(); !p.empty())
     throw std::invalid_argument(p);
   return s;
@@ -313,21 +320,49 @@ Ldr::Ldr(const LdrSpec& spec) : spec_(spec) {
   std::int64_t c = spec.in_channels, side = spec.input_size;
   if (spec.input_normalization == "standardize")
     input_ = register_module("input", std::make_shared<CodeStandardization>(c, side));
-  features_ = register_module("features", std::make_shared<Sequential>());
-  for (std::int64_t w : spec.widths) {
-    features_->add(std::make_shared<Conv2d>(c, w, 3, 1, Padding2d::valid()));
-    features_->add(std::make_shared<nn::ReLU>());
-    c = w;
-    side -= 2;
+  const std::int64_t in = c;
+  for (std::int64_t k = 0; k < spec.members; ++k) {
+    const std::string prefix = k == 0 ? "" : "m" + std::to_string(k) + "_";
+    Member m;
+    m.features = register_module(prefix + "features", std::make_shared<Sequential>());
+    c = in;
+    side = spec.input_size;
+    for (std::int64_t w : spec.widths) {
+      m.features->add(std::make_shared<Conv2d>(c, w, 3, 1, Padding2d::valid()));
+      m.features->add(std::make_shared<nn::ReLU>());
+      c = w;
+      side -= 2;
+    }
+    m.hidden =
+        register_module(prefix + "hidden", std::make_shared<Dense>(c * side * side, spec.hidden));
+    m.out = register_module(prefix + "out", std::make_shared<Dense>(spec.hidden, 1));
+    members_.push_back(std::move(m));
   }
-  hidden_ = register_module("hidden", std::make_shared<Dense>(c * side * side, spec.hidden));
-  out_ = register_module("out", std::make_shared<Dense>(spec.hidden, 1));
+}
+
+Tensor Ldr::member_logit(const Member& m, const Tensor& x) const {
+  const Tensor logit = (*m.out)(nn::relu((*m.hidden)(nn::flatten((*m.features)(x)))));
+  return nn::reshape(logit, nn::Shape{logit.shape()[0]});
+}
+
+std::vector<Tensor> Ldr::member_logits(const Tensor& y) {
+  const Tensor x = input_ ? (*input_)(y) : y;
+  std::vector<Tensor> out;
+  for (const Member& m : members_)
+    out.push_back(member_logit(m, x));
+  return out;
 }
 
 Tensor Ldr::forward(const Tensor& y) {
-  const Tensor x = input_ ? (*input_)(y) : y;
-  const Tensor logit = (*out_)(nn::relu((*hidden_)(nn::flatten((*features_)(x)))));
-  return nn::reshape(logit, nn::Shape{logit.shape()[0]});
+  if (members_.size() == 1) {  // one classifier: its logit as it was before the option
+    const Tensor x = input_ ? (*input_)(y) : y;
+    return member_logit(members_[0], x);
+  }
+  const std::vector<Tensor> logits = member_logits(y);
+  Tensor sum = logits[0];
+  for (std::size_t k = 1; k < logits.size(); ++k)
+    sum = nn::add(sum, logits[k]);
+  return nn::mul_scalar(sum, 1.0f / static_cast<float>(logits.size()));
 }
 
 void Ldr::set_input_map(const CodeStandardization& fitted) {

@@ -106,6 +106,7 @@ void train_ae1(const ExperimentConfig& config, const TrainingData& data, const f
   if (with_heads) {
     LdrSpec spec = config.ldr;
     spec.input_normalization = "none";
+    spec.members = 1;  // a pair head is one classifier
     const std::int64_t code = config.ae1.code_size();
     for (const JointRegimes& j : data.joints) {
       if (pair_config.head == "linear")

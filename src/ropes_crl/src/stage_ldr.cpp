@@ -109,8 +109,6 @@ LdrOutcome train_ldr(const ExperimentConfig& config, const TrainingData& data,
       nn::StepOptions so;
       so.schedule = &schedule;
       so.clip_norm = t.optimizer.clip_norm;
-      nn::BatchLoss loss = nn::mean_loss(
-          [&](std::size_t) { return nn::bce_with_logits_elementwise(net(y), labels); });
       // with the pair loss: each row with its partner, (intervention 1, intervention 2)
       std::vector<std::int64_t> firsts, seconds;
       if (pair_weight > 0)
@@ -125,22 +123,42 @@ LdrOutcome train_ldr(const ExperimentConfig& config, const TrainingData& data,
         std::vector<std::int64_t> both = firsts;
         both.insert(both.end(), seconds.begin(), seconds.end());
         pair_codes = data.codes_of(both);
-        const auto n = static_cast<std::int64_t>(rows.size());
-        const auto p = static_cast<std::int64_t>(firsts.size());
-        // per-sample terms scaled so that their mean is the BCE's mean + weight x the pairs'
-        const float total = static_cast<float>(n + p);
-        loss = nn::mean_loss([&, n, p, total](std::size_t) {
-          const Tensor bce = nn::bce_with_logits_elementwise(net(y), labels);
-          const Tensor logits = net(pair_codes);  // [2p]: firsts, then seconds
-          const Tensor d = nn::sub(nn::slice(logits, 0, p, 2 * p), nn::slice(logits, 0, 0, p));
-          const Tensor pair = nn::bce_with_logits_elementwise(
-              d, Tensor(Shape{p}, nn::Buffer(static_cast<std::size_t>(p), 1.0f)));
-          return nn::concat({nn::mul_scalar(bce, total / static_cast<float>(n)),
-                             nn::mul_scalar(pair, static_cast<float>(pair_weight) * total /
-                                                      static_cast<float>(p))},
-                            0);
-        });
       }
+      const auto n = static_cast<std::int64_t>(rows.size());
+      const auto p = static_cast<std::int64_t>(firsts.size());
+      // one member's per-sample terms: the BCE's, then with the pair loss the pairs', scaled so
+      // that their mean is the BCE's mean + weight x the pairs' mean
+      // (pair_logits_of is called after the BCE, the order of the single classifier's graph)
+      const auto member_terms = [&](const Tensor& logits,
+                                    const std::function<Tensor()>& pair_logits_of) {
+        const Tensor bce = nn::bce_with_logits_elementwise(logits, labels);
+        if (p == 0)
+          return bce;
+        const float total = static_cast<float>(n + p);
+        const Tensor pair_logits = pair_logits_of();  // [2p]: firsts, then seconds
+        const Tensor d =
+            nn::sub(nn::slice(pair_logits, 0, p, 2 * p), nn::slice(pair_logits, 0, 0, p));
+        const Tensor pair = nn::bce_with_logits_elementwise(
+            d, Tensor(Shape{p}, nn::Buffer(static_cast<std::size_t>(p), 1.0f)));
+        return nn::concat(
+            {nn::mul_scalar(bce, total / static_cast<float>(n)),
+             nn::mul_scalar(pair, static_cast<float>(pair_weight) * total / static_cast<float>(p))},
+            0);
+      };
+      nn::BatchLoss loss = nn::mean_loss([&](std::size_t) {
+        if (config.ldr.members == 1)  // one classifier: its loss as before the option
+          return member_terms(net(y), [&] { return net(pair_codes); });
+        // an ensemble: each member's own loss, summed (the members share no parameter, so each
+        // gets the gradient it would alone); the mean over K x terms, times K, is that sum
+        const std::vector<Tensor> logits = net.member_logits(y);
+        std::vector<Tensor> pair_logits;
+        if (p > 0)
+          pair_logits = net.member_logits(pair_codes);
+        std::vector<Tensor> terms;
+        for (std::size_t k = 0; k < logits.size(); ++k)
+          terms.push_back(member_terms(logits[k], [&] { return pair_logits[k]; }));
+        return nn::mul_scalar(nn::concat(terms, 0), static_cast<float>(logits.size()));
+      });
       train_loss += checked_step(adam, loss, so, "ldr " + joint.name, weights).loss;
     }
     const auto [loss, accuracy] = ldr_evaluate(net, data, held_rows, joint.regime2);

@@ -183,6 +183,17 @@ TEST(ExperimentConfig, ErrorsNameTheFileTheFieldAndTheValue) {
   j["ldr"]["pair_loss"] = {{"weight", 2}};
   EXPECT_DOUBLE_EQ(ExperimentConfig::from_json(j, "test.json").ldr_training.pair_loss.weight, 2.0);
   EXPECT_DOUBLE_EQ(c.ldr_training.pair_loss.weight, 0.0) << "off when absent";
+  // an ensemble of LDRs (an extension, one classifier when absent): 1 to 16 members
+  j = c.raw;
+  j["ldr"]["members"] = 0;
+  EXPECT_NE(error_of(j).find("config.ldr.members: expected 1 to 16 classifiers, got 0"),
+            std::string::npos)
+      << error_of(j);
+  j["ldr"]["members"] = 1.5;
+  EXPECT_NE(error_of(j).find("config.ldr.members"), std::string::npos) << error_of(j);
+  j["ldr"]["members"] = 3;
+  EXPECT_EQ(ExperimentConfig::from_json(j, "test.json").ldr.members, 3);
+  EXPECT_EQ(c.ldr.members, 1) << "one classifier when absent";
   // AE2's logit term (an extension, off when absent): {"weight" > 0}
   j = c.raw;
   j["ae2"]["logit_loss"] = {{"weight", -1}};

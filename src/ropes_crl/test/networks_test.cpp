@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <stdexcept>
 
 using namespace ropes::crl;
@@ -336,4 +337,69 @@ TEST(Networks, Ae2WithStandardizedCodesEncodesTheMappedCodeAndReconstructsIt) {
                              "\"pca\""),
             std::string::npos)
       << s.problem();
+}
+
+TEST(Networks, AnLdrEnsembleIsTheMeanOfItsMembers) {
+  LdrSpec s;
+  s.members = 3;
+  Ldr ensemble(s);
+  ensemble.initialize(7);
+  LdrSpec one_spec;
+  // member 0 keeps the single classifier's parameter names, so the same seed gives it the
+  // single classifier's weights; members 1 and 2 are the single classifier with the weights of
+  // "mK_..." copied in
+  std::vector<std::unique_ptr<Ldr>> singles;
+  for (int k = 0; k < 3; ++k) {
+    singles.push_back(std::make_unique<Ldr>(one_spec));
+    singles.back()->initialize(7);
+  }
+  for (int k = 1; k < 3; ++k) {
+    const std::string prefix = "m" + std::to_string(k) + "_";
+    std::size_t copied = 0;
+    for (auto& [name, t] : singles[static_cast<std::size_t>(k)]->named_parameters())
+      for (const auto& [ename, et] : ensemble.named_parameters())
+        if (ename == prefix + name) {
+          std::copy_n(et.data(), et.numel(), t.mutable_data());
+          ++copied;
+        }
+    ASSERT_EQ(copied, singles[0]->named_parameters().size()) << prefix;
+  }
+  EXPECT_EQ(ensemble.named_parameters().size(), 3 * singles[0]->named_parameters().size());
+
+  Tensor y = ramp(Shape{5, 1, 8, 8});
+  const std::vector<Tensor> members = ensemble.member_logits(y);
+  ASSERT_EQ(members.size(), 3u);
+  for (std::size_t k = 0; k < 3; ++k)
+    EXPECT_EQ(members[k].to_vector(), (*singles[k])(y).to_vector()) << "member " << k;
+  EXPECT_NE(members[1].to_vector(), members[0].to_vector()) << "members initialised alike";
+  // the logit and its input gradient (the score difference) are the members' means
+  y.set_requires_grad(true);
+  const Tensor logit = ensemble(y);
+  const std::vector<float> g = ropes::nn::grad({ropes::nn::sum(logit)}, {y})[0].to_vector();
+  std::vector<float> mean_logit(5, 0.0f), mean_grad(g.size(), 0.0f);
+  for (std::size_t k = 0; k < 3; ++k) {
+    Tensor yk = ramp(Shape{5, 1, 8, 8});
+    yk.set_requires_grad(true);
+    const Tensor l = (*singles[k])(yk);
+    const std::vector<float> gk = ropes::nn::grad({ropes::nn::sum(l)}, {yk})[0].to_vector();
+    for (std::size_t i = 0; i < 5; ++i)
+      mean_logit[i] += l.to_vector()[i] / 3;
+    for (std::size_t i = 0; i < g.size(); ++i)
+      mean_grad[i] += gk[i] / 3;
+  }
+  for (std::size_t i = 0; i < 5; ++i)
+    EXPECT_NEAR(logit.to_vector()[i], mean_logit[i], 1e-6) << i;
+  for (std::size_t i = 0; i < g.size(); ++i)
+    EXPECT_NEAR(g[i], mean_grad[i], 1e-6) << i;
+
+  // the spec's JSON: "members" only for an ensemble, so a single classifier's weight files
+  // read as before; 1 to 16 members
+  EXPECT_FALSE(one_spec.to_json().contains("members"));
+  EXPECT_EQ(LdrSpec::from_json(s.to_json()).members, 3);
+  for (const std::int64_t bad : {0, 17}) {
+    LdrSpec b;
+    b.members = bad;
+    EXPECT_EQ(b.problem(), "ldr.members: expected 1 to 16 classifiers, got " + std::to_string(bad));
+    EXPECT_THROW(Ldr{b}, std::invalid_argument);
+  }
 }

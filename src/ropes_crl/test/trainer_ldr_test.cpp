@@ -2,8 +2,13 @@
 // and the Bayes accuracy of its interventions recorded in run.json; and a run stopped inside
 // the stage, in the second joint's LDR, that resumes to the bytes of a run never stopped
 // (the finished joint is kept, the stopped one restarts).
+#include <ropes_nn/checkpoint.hpp>
+
+#include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
+#include "ropes_crl/networks.hpp"
 #include "trainer_stage_fixture.hpp"
 
 namespace ropes::crl::test_support {
@@ -57,6 +62,48 @@ TEST_F(TrainerLdr, AStopInsideTheStageResumesToTheSameBytes) {
     EXPECT_EQ(a.ldr(joint)->held_out_accuracy, b.ldr(joint)->held_out_accuracy) << joint;
   // the stopped joint's records are written again, not twice
   EXPECT_EQ(records(run, "ldr").size(), records(whole, "ldr").size());
+}
+
+TEST_F(TrainerLdr, EachMemberOfAnEnsembleTrainsAsASingleLdrWould) {
+  // one epoch (so that early stopping keeps the same epoch's weights in both runs), with the
+  // pair loss so that both of a member's terms are checked
+  config_.ldr_training.max_epochs = 1;
+  config_.ldr_training.pair_loss.weight = 1.0;
+  const fs::path single = train_to("single", 2, options_);
+  config_.ldr.members = 2;
+  const fs::path ensemble = train_to("ensemble", 2, options_);
+  for (const char* joint : kJoints) {
+    const std::string file = std::string("ldr.") + joint + ".safetensors";
+    LdrSpec one = config_.ldr;
+    one.members = 1;
+    Ldr a(one), b(config_.ldr);
+    nn::load_module(a, single / file);
+    nn::load_module(b, ensemble / file);
+    // member 0 has the single LDR's names and seed: its loss, alone, gives it the single LDR's
+    // steps, to the bit (with 2 members the ensemble's mean over both members' terms, times 2,
+    // only scales by powers of two); trained on the members' mean logit instead, it differs by
+    // 0.002 (checked by hand)
+    const auto pa = a.named_parameters(), pb = b.named_parameters();
+    ASSERT_EQ(pb.size(), 2 * pa.size());
+    double most = 0, moved = 0;
+    for (std::size_t i = 0; i < pa.size(); ++i) {
+      ASSERT_EQ(pa[i].first, pb[i].first);
+      const std::vector<float> x = pa[i].second.to_vector(), y = pb[i].second.to_vector();
+      for (std::size_t e = 0; e < x.size(); ++e)
+        most = std::max(most, static_cast<double>(std::fabs(x[e] - y[e])));
+    }
+    // member 1 is trained too, from its own start: it differs from member 0
+    for (std::size_t i = 0; i < pa.size(); ++i) {
+      const std::vector<float> x = pb[i].second.to_vector(),
+                               y = pb[pa.size() + i].second.to_vector();
+      for (std::size_t e = 0; e < x.size(); ++e)
+        moved = std::max(moved, static_cast<double>(std::fabs(x[e] - y[e])));
+    }
+    EXPECT_EQ(most, 0.0) << joint;
+    EXPECT_GT(moved, 1e-2) << joint;
+  }
+  const RunDirectory r = RunDirectory::open(ensemble);
+  EXPECT_TRUE(r.ldr(kJoints[0]).has_value());
 }
 
 }  // namespace

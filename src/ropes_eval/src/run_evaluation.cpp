@@ -177,6 +177,10 @@ void describe_run(RunEvaluation& ev, const crl::RunDirectory& run,
         "ldr.pair_loss: each LDR also trained to order its joint's two interventions at one "
         "anchor (weight " +
         fmt(w, 3) + "; regimes and anchors only, no angle)");
+  if (const std::int64_t k = config.ldr.members; k > 1)
+    ev.extensions.push_back("ldr.members: each joint's LDR an ensemble of " + std::to_string(k) +
+                            " classifiers, each trained on its own loss from its own start, the "
+                            "logit and the score difference their means");
   if (const double w = config.ae2_training.logit_loss.weight; w > 0)
     ev.extensions.push_back(
         "ae2.logit_loss: each joint's AE2 latent also trained to follow its frozen LDR's logit "

@@ -109,12 +109,18 @@ class CodeStandardization : public nn::Module {
 /// (parameters "input.shift", "input.scale"), set by set_input_map. The logit is
 /// still a function of y, so its gradient, the score difference, is taken in y's coordinates
 /// through the map.
+///
+/// members > 1 (an extension, not in the paper): an ensemble of that many such classifiers
+/// behind the one input map, each initialised apart (member k's parameters are named
+/// "mK_features", "mK_hidden", "mK_out"; member 0's keep the plain names); the logit is the
+/// members' mean, so the score difference is their mean gradient.
 struct LdrSpec {
   std::int64_t in_channels = 1;
   std::int64_t input_size = 8;
   std::vector<std::int64_t> widths = {32, 64, 128};
   std::int64_t hidden = 128;
   std::string input_normalization = "none";  ///< "none" (the paper) or "standardize"
+  std::int64_t members = 1;                  ///< 1 (the paper) or an ensemble's size
 
   std::string problem() const;
   nlohmann::json to_json() const;
@@ -134,16 +140,22 @@ class Ldr : public nn::Module {
   const CodeStandardization* input_map() const { return input_.get(); }
   /// The parameters an optimiser trains: every parameter but the input map's.
   std::vector<std::pair<std::string, Tensor>> trained_parameters() const;
+  /// y [N, C, 8, 8] -> each member's logit [N], members in order (the forward's mean of these)
+  std::vector<Tensor> member_logits(const Tensor& y);
 
  protected:
   /// y [N, C, 8, 8] -> logit [N]
   Tensor forward(const Tensor& y) override;
 
  private:
+  struct Member {
+    std::shared_ptr<nn::Sequential> features;
+    std::shared_ptr<nn::Dense> hidden, out;
+  };
+  Tensor member_logit(const Member& m, const Tensor& x) const;
   LdrSpec spec_;
   std::shared_ptr<CodeStandardization> input_;  // with "standardize"
-  std::shared_ptr<nn::Sequential> features_;
-  std::shared_ptr<nn::Dense> hidden_, out_;
+  std::vector<Member> members_;
 };
 
 /// AE2, the disentangling autoencoder on the codes Y.
