@@ -5,6 +5,9 @@
 // Each one's backward is written with the other two, so gradients of gradients work.
 
 #include <omp.h>
+#ifdef __AVX__
+#include <immintrin.h>
+#endif
 
 #include <algorithm>
 #include <atomic>
@@ -34,6 +37,60 @@ void inside_range(const ConvGeometry& g, std::int64_t kj, std::int64_t* begin, s
   *end = e;
 }
 
+// The runs of im2col and col2im are an image row or less: too short for memcpy and memset to pay
+// for their calls, and long enough that a loop's scalar remainder costs more than its vectors.
+// With AVX, whole 8-float vectors, the last one overlapping the one before where the length is
+// not a multiple (a copy writes each element's value, whichever store wrote it last).
+inline void copy_run(const float* in, float* out, std::int64_t n) {
+#ifdef __AVX__
+  if (n >= 8) {
+    std::int64_t j = 0;
+    for (; j + 8 <= n; j += 8)
+      _mm256_storeu_ps(out + j, _mm256_loadu_ps(in + j));
+    if (j < n)
+      _mm256_storeu_ps(out + n - 8, _mm256_loadu_ps(in + n - 8));
+    return;
+  }
+#endif
+  for (std::int64_t j = 0; j < n; ++j)
+    out[j] = in[j];
+}
+
+inline void zero_run(float* out, std::int64_t n) {
+#ifdef __AVX__
+  if (n >= 8) {
+    std::int64_t j = 0;
+    for (; j + 8 <= n; j += 8)
+      _mm256_storeu_ps(out + j, _mm256_setzero_ps());
+    if (j < n)
+      _mm256_storeu_ps(out + n - 8, _mm256_setzero_ps());
+    return;
+  }
+#endif
+  for (std::int64_t j = 0; j < n; ++j)
+    out[j] = 0.0f;
+}
+
+// out[j] += in[j]: the same addition per element as the plain loop, eight at a time, the last
+// few under a mask
+inline void add_run(const float* in, float* out, std::int64_t n) {
+  std::int64_t j = 0;
+#ifdef __AVX2__
+  for (; j + 8 <= n; j += 8)
+    _mm256_storeu_ps(out + j, _mm256_add_ps(_mm256_loadu_ps(out + j), _mm256_loadu_ps(in + j)));
+  if (j < n) {
+    const __m256i mask = _mm256_cmpgt_epi32(_mm256_set1_epi32(static_cast<int>(n - j)),
+                                            _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+    _mm256_maskstore_ps(
+        out + j, mask,
+        _mm256_add_ps(_mm256_maskload_ps(out + j, mask), _mm256_maskload_ps(in + j, mask)));
+    return;
+  }
+#endif
+  for (; j < n; ++j)
+    out[j] += in[j];
+}
+
 // x [c, h, w] -> the columns of output pixels [p0, p1) of the im2col matrix
 // [c*kh*kw, oh*ow], into col with row stride ld (column p0 first), zeros where the window
 // leaves the image
@@ -57,23 +114,18 @@ void im2col(const float* x, const ConvGeometry& g, float* col, std::int64_t ld, 
           float* out = col + (row + oy * g.ow + first);
           const std::int64_t iy = oy * g.stride - g.top + ki;
           if (iy < 0 || iy >= g.h) {
-            for (std::int64_t j = 0; j < last - first; ++j)
-              out[j] = 0.0f;
+            zero_run(out, last - first);
             continue;
           }
           const std::int64_t b = std::clamp(in_begin, first, last);
           const std::int64_t e = std::clamp(in_end, b, last);
-          // plain loops: the runs are an image row or less, too short for memset and memcpy
-          // to pay for their calls
-          for (std::int64_t j = 0; j < b - first; ++j)
-            out[j] = 0.0f;
+          zero_run(out, b - first);
           if (e > b) {
             // input column b * stride + offset >= 0 of row iy
             const float* in = x + ((ch * g.h + iy) * g.w + b * g.stride + offset);
             float* run = out + (b - first);
             if (g.stride == 1) {
-              for (std::int64_t j = 0; j < e - b; ++j)
-                run[j] = in[j];
+              copy_run(in, run, e - b);
             } else if (g.stride == 2) {
               // a constant stride, which the compiler vectorises (even lanes of two loads)
               for (std::int64_t j = 0; j < e - b; ++j)
@@ -83,8 +135,7 @@ void im2col(const float* x, const ConvGeometry& g, float* col, std::int64_t ld, 
                 run[j] = in[j * g.stride];
             }
           }
-          for (std::int64_t j = e - first; j < last - first; ++j)
-            out[j] = 0.0f;
+          zero_run(out + (e - first), last - e);
         }
       }
   }
@@ -121,8 +172,7 @@ void col2im(const float* col, std::int64_t ld, const ConvGeometry& g, float* x, 
           float* out = x + ((ch * g.h + iy) * g.w + b * g.stride + offset);
           const float* in = col + (row + oy * g.ow + b);
           if (g.stride == 1) {
-            for (std::int64_t j = 0; j < e - b; ++j)
-              out[j] += in[j];
+            add_run(in, out, e - b);
           } else {
             for (std::int64_t j = 0; j < e - b; ++j)
               out[j * g.stride] += in[j];

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "conv_kernels.hpp"
+#include "gemm.hpp"
 #include "ropes_core/philox.hpp"
 #include "ropes_nn/ops.hpp"
 #include "ropes_nn/parallel.hpp"
@@ -73,6 +74,70 @@ TEST(ConvKernels, TilesGiveTheWholeImagesBitsAtEveryThreadCount) {
       EXPECT_EQ(values(conv_forward(x.data(), w.data(), g)), y) << "forward, " << at;
       EXPECT_EQ(values(conv_input_grad(gy.data(), w.data(), g)), dx) << "input grad, " << at;
       EXPECT_EQ(values(conv_weight_grad(x.data(), gy.data(), g)), dw) << "weight grad, " << at;
+    }
+  }
+  set_num_threads(saved);
+}
+
+// The whole-image kernels against the definition: an im2col matrix built element by element
+// here (im2col[(ch, ki, kj)][(oy, ox)] = x[ch][oy * stride - top + ki][ox * stride - left + kj],
+// zero outside the image) and the same gemm(), bit for bit; col2im likewise, each input pixel
+// summing its terms in (ki, kj) order from 0. Rows of 1 to 21 pixels and every padding and
+// stride exercise the copies' vector and remainder paths.
+TEST(ConvKernels, WholeImagesAreIm2colByDefinitionThenTheProduct) {
+  const int saved = num_threads();
+  set_num_threads(1);
+  for (std::int64_t width : {1, 3, 7, 8, 9, 13, 16, 17, 21}) {
+    for (int stride : {1, 2, 3}) {
+      for (int pad : {0, 1, 2}) {
+        const Case c{2, 3, 5, width, 4, 3, stride, pad, pad, pad, 2 * pad};
+        const ConvGeometry g = geometry(c);
+        if (g.oh < 1 || g.ow < 1)
+          continue;
+        const std::vector<float> x = normals(g.x_shape().numel(), 4);
+        const std::vector<float> w = normals(g.w_shape().numel(), 5);
+        const std::vector<float> gy = normals(g.y_shape().numel(), 6);
+        const std::int64_t patch = g.patch(), pixels = g.pixels(), image = g.c * g.h * g.w;
+        std::vector<float> y(static_cast<std::size_t>(g.y_shape().numel()));
+        std::vector<float> dx(static_cast<std::size_t>(g.x_shape().numel()), 0.0f);
+        for (std::int64_t i = 0; i < g.n; ++i) {
+          std::vector<float> col(static_cast<std::size_t>(patch * pixels));
+          for (std::int64_t ch = 0; ch < g.c; ++ch)
+            for (std::int64_t ki = 0; ki < g.kh; ++ki)
+              for (std::int64_t kj = 0; kj < g.kw; ++kj)
+                for (std::int64_t oy = 0; oy < g.oh; ++oy)
+                  for (std::int64_t ox = 0; ox < g.ow; ++ox) {
+                    const std::int64_t iy = oy * g.stride - g.top + ki;
+                    const std::int64_t ix = ox * g.stride - g.left + kj;
+                    const bool inside = iy >= 0 && iy < g.h && ix >= 0 && ix < g.w;
+                    col[static_cast<std::size_t>(((ch * g.kh + ki) * g.kw + kj) * pixels +
+                                                 oy * g.ow + ox)] =
+                        inside ? x[static_cast<std::size_t>(i * image + (ch * g.h + iy) * g.w + ix)]
+                               : 0.0f;
+                  }
+          gemm(w.data(), col.data(), y.data() + i * g.o * pixels, g.o, patch, pixels);
+          // the adjoint: col = w^T gy_i, each term added into its input pixel
+          gemm(w.data(), true, gy.data() + i * g.o * pixels, false, col.data(), patch, g.o, pixels,
+               false);
+          for (std::int64_t ch = 0; ch < g.c; ++ch)
+            for (std::int64_t ki = 0; ki < g.kh; ++ki)
+              for (std::int64_t kj = 0; kj < g.kw; ++kj)
+                for (std::int64_t oy = 0; oy < g.oh; ++oy)
+                  for (std::int64_t ox = 0; ox < g.ow; ++ox) {
+                    const std::int64_t iy = oy * g.stride - g.top + ki;
+                    const std::int64_t ix = ox * g.stride - g.left + kj;
+                    if (iy >= 0 && iy < g.h && ix >= 0 && ix < g.w)
+                      dx[static_cast<std::size_t>(i * image + (ch * g.h + iy) * g.w + ix)] +=
+                          col[static_cast<std::size_t>(((ch * g.kh + ki) * g.kw + kj) * pixels +
+                                                       oy * g.ow + ox)];
+                  }
+        }
+        const std::string what = "x " + g.x_shape().str() + " stride " + std::to_string(stride) +
+                                 " padding " + std::to_string(pad);
+        EXPECT_EQ(values(conv_forward(x.data(), w.data(), g, ConvTiling::kWholeImages)), y) << what;
+        EXPECT_EQ(values(conv_input_grad(gy.data(), w.data(), g, ConvTiling::kWholeImages)), dx)
+            << what;
+      }
     }
   }
   set_num_threads(saved);
