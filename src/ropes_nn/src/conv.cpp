@@ -91,6 +91,27 @@ inline void add_run(const float* in, float* out, std::int64_t n) {
     out[j] += in[j];
 }
 
+// x [c, h, w] padded for a stride-1 convolution's direct kernel: [c, oh + kh - 1, ow + kw - 1],
+// the image at (top, left) and zeros around it (what im2col reads outside the image), so that
+// every window lies inside
+void pad_image(const float* x, const ConvGeometry& g, float* out) {
+  const std::int64_t hp = g.oh + g.kh - 1, wp = g.ow + g.kw - 1;
+  const std::int64_t b = std::clamp<std::int64_t>(g.left, 0, wp);
+  const std::int64_t e = std::clamp<std::int64_t>(g.left + g.w, b, wp);
+  for (std::int64_t ch = 0; ch < g.c; ++ch)
+    for (std::int64_t r = 0; r < hp; ++r) {
+      float* row = out + (ch * hp + r) * wp;
+      const std::int64_t iy = r - g.top;
+      if (iy < 0 || iy >= g.h) {
+        zero_run(row, wp);
+        continue;
+      }
+      zero_run(row, b);
+      copy_run(x + (ch * g.h + iy) * g.w + (b - g.left), row + b, e - b);
+      zero_run(row + e, wp - e);
+    }
+}
+
 // x [c, h, w] -> the columns of output pixels [p0, p1) of the im2col matrix
 // [c*kh*kw, oh*ow], into col with row stride ld (column p0 first), zeros where the window
 // leaves the image
@@ -198,6 +219,14 @@ float* forward_scratch(std::size_t size) {
   return scratch.data();
 }
 
+// This thread's padded image for the direct kernel, which only grows (as forward_scratch)
+float* padded_scratch(std::size_t size) {
+  thread_local Buffer scratch;
+  if (scratch.size() < size)
+    scratch = Buffer(size);
+  return scratch.data();
+}
+
 std::int64_t tiles_of(std::int64_t size, std::int64_t tile) {
   return (size + tile - 1) / tile;
 }
@@ -242,11 +271,27 @@ Buffer conv_forward(const float* x, const float* w, const ConvGeometry& g, ConvT
     });
     return y;
   }
+  // a stride-1 convolution's padded image for the level's direct kernel
+  const std::int64_t hp = g.oh + g.kh - 1, wp = g.ow + g.kw - 1;
   parallel_for(g.n * tiles, [&](int, std::int64_t begin, std::int64_t end) {
     float* col = forward_scratch(static_cast<std::size_t>(k * std::min(tile, n)));
     GemmSharedA weights(blocking, w, false, k, m, k);  // packed once for the thread's tiles
+    // the level's direct kernel where it covers the shape (it says so on the first tile): the
+    // same bits without im2col, from the image padded once
+    bool direct = g.stride == 1 && weights.packed();
+    float* padded = direct ? padded_scratch(static_cast<std::size_t>(g.c * hp * wp)) : nullptr;
+    std::int64_t padded_image = -1;
     for (std::int64_t item = begin; item < end; ++item) {
       const std::int64_t i = item / tiles, p0 = item % tiles * tile, p1 = std::min(p0 + tile, n);
+      if (direct) {
+        if (padded_image != i)
+          pad_image(x + i * image, g, padded);
+        padded_image = i;
+        if (gemm_conv_tile(ConvTile{padded, g.c, hp, wp, g.kh, g.kw, 0, 0, g.ow, w, bias, m,
+                                    y.data() + i * m * n, n, p0, p1 - p0}))
+          continue;
+        direct = false;
+      }
       im2col(x + i * image, g, col, p1 - p0, p0, p1);
       float* yi = y.data() + i * m * n + p0;
       if (bias != nullptr)

@@ -164,6 +164,10 @@ GemmSharedA::GemmSharedA(const GemmBlocking& whole, const float* a, bool a_trans
     packed_ = p.block_b;
 }
 
+bool gemm_conv_tile(const ConvTile& tile) {
+  return gemm_kernels().conv_tile(tile);
+}
+
 void GemmSharedA::multiply(const float* b, std::int64_t ldb, float* c, std::int64_t ldc,
                            std::int64_t n, bool accumulate) {
   if (packed_ == nullptr) {

@@ -79,6 +79,8 @@ class GemmSharedA {
   // same addition)
   void multiply_onto(const float* start, const float* b, std::int64_t ldb, float* c,
                      std::int64_t ldc, std::int64_t n);
+  // whether op(a) was packed once (its sum fits one block of the whole product)
+  bool packed() const { return packed_ != nullptr; }
 
  private:
   GemmBlocking whole_;
@@ -87,6 +89,12 @@ class GemmSharedA {
   std::int64_t lda_, m_, k_;
   float* packed_ = nullptr;  // this thread's packed op(a), or null where it did not fit
 };
+
+// The level's direct kernel for one tile of a stride-1 convolution's forward product
+// (gemm_kernel.hpp's conv_tile): the bits GemmSharedA's product of the tile's im2col matrix
+// gives, with the weights packed once (their sum fits one block), without building that
+// matrix; false, nothing written, where the level or the shape has none.
+bool gemm_conv_tile(const ConvTile& tile);
 
 // The blocking reference: the cache sizes Eigen 3.4 queries on the AMD Zen 5 machine the
 // workspace's tables were measured on (L1d 48 KiB, L2 1 MiB; L3 only needs to be non-zero).

@@ -3,6 +3,9 @@
 #include "gemm_kernel.hpp"
 
 #include <Eigen/Core>
+#if defined(__AVX512F__)
+#include <immintrin.h>
+#endif
 
 #ifndef ROPES_KERNEL_NS
 #error "compile gemm_kernel.cpp with -DROPES_KERNEL_NS=kernel_<level>"
@@ -160,6 +163,113 @@ void with_packed_a(const GemmProduct& p) {
     PackedA<Eigen::RowMajor>::run(p);
 }
 
+#if defined(__AVX512F__)
+// The forward product of one tile of a stride-1 convolution without its im2col matrix, for the
+// v4 kernels: y (+)= w [o, K] * col [K, n], K = c * kh * kw. What the blocked product does to
+// one output element is fixed by where its pixel falls in Eigen's packing of the tile
+// (gemm_pack_lhs: panels of 48, then one of 32, then one of 16 pixels) and its channel in
+// groups of 4 (gebp_kernel's nr): from zero, one fused multiply-add per k in order, k running
+// over (channel, ki, kj); in a 16-pixel panel (lhs_process_one_packet) even k of the first
+// K & ~7 into one accumulator and odd k into another, the two added, then the remaining k;
+// finally fma(acc, 1, what y held), y held 0 or the bias. Here each k's 16 pixels are one load
+// from the image, which the caller has padded (top = left = 0, every window inside it: the
+// zeros im2col would write are in the image), each weight a broadcast: the same operations on
+// the same values. Covered: output channels a multiple of 4, output rows a multiple of 16
+// pixels (a vector never spans two), tiles of whole vectors.
+using Vec = __m512;
+constexpr Index kLanes = 16;
+
+// KH, KW: the window when known at compile time (3x3), else 0 (t.kh, t.kw)
+template <int Vectors, int KH, int KW>
+void conv_panel(const ConvTile& t, Index first, Index depth) {
+  static_assert(Vectors >= 1 && Vectors <= 3, "gebp's panels are 1 to 3 packets");
+  const Index kh = KH > 0 ? KH : t.kh, kw = KW > 0 ? KW : t.kw, plane = t.h * t.w;
+  Index window[Vectors];  // each vector's first window's top-left pixel in a channel plane
+  for (int v = 0; v < Vectors; ++v) {
+    const Index pixel = t.p0 + first + v * kLanes;
+    window[v] = pixel / t.ow * t.w + pixel % t.ow;
+  }
+  const Index peeled = depth & ~Index{7};
+  const Vec one = _mm512_set1_ps(1.0f);
+  for (Index o4 = 0; o4 < t.o; o4 += 4) {
+    const float* w[4];
+    for (int j = 0; j < 4; ++j)
+      w[j] = t.weights + (o4 + j) * depth;
+    Vec acc[Vectors][4], odd[4];
+    for (int v = 0; v < Vectors; ++v)
+      for (int j = 0; j < 4; ++j)
+        acc[v][j] = _mm512_setzero_ps();
+    for (int j = 0; j < 4; ++j)
+      odd[j] = _mm512_setzero_ps();
+    Index k = 0;
+    for (Index ch = 0; ch < t.c; ++ch) {
+      const float* image = t.x + ch * plane;
+      for (Index ki = 0; ki < kh; ++ki)
+        for (Index kj = 0; kj < kw; ++kj, ++k) {
+          Vec a[Vectors];
+          for (int v = 0; v < Vectors; ++v)
+            a[v] = _mm512_loadu_ps(image + window[v] + ki * t.w + kj);
+          if (Vectors == 1 && k < peeled) {
+            Vec* into = (k & 1) != 0 ? odd : acc[0];
+            for (int j = 0; j < 4; ++j)
+              into[j] = _mm512_fmadd_ps(a[0], _mm512_set1_ps(w[j][k]), into[j]);
+            continue;
+          }
+          if (Vectors == 1 && k == peeled && peeled > 0)
+            for (int j = 0; j < 4; ++j)
+              acc[0][j] = _mm512_add_ps(acc[0][j], odd[j]);
+          for (int j = 0; j < 4; ++j) {
+            const Vec b = _mm512_set1_ps(w[j][k]);
+            for (int v = 0; v < Vectors; ++v)
+              acc[v][j] = _mm512_fmadd_ps(a[v], b, acc[v][j]);
+          }
+        }
+    }
+    if (Vectors == 1 && peeled == depth && peeled > 0)
+      for (int j = 0; j < 4; ++j)
+        acc[0][j] = _mm512_add_ps(acc[0][j], odd[j]);
+    for (int j = 0; j < 4; ++j) {
+      const Vec held = t.bias != nullptr ? _mm512_set1_ps(t.bias[o4 + j]) : _mm512_setzero_ps();
+      float* out = t.y + (o4 + j) * t.pixels + t.p0 + first;
+      for (int v = 0; v < Vectors; ++v)
+        _mm512_storeu_ps(out + v * kLanes, _mm512_fmadd_ps(acc[v][j], one, held));
+    }
+  }
+}
+
+template <int KH, int KW>
+void conv_panels(const ConvTile& t, Index depth) {
+  Index first = 0;
+  for (; first + 3 * kLanes <= t.n; first += 3 * kLanes)
+    conv_panel<3, KH, KW>(t, first, depth);
+  if (first + 2 * kLanes <= t.n) {
+    conv_panel<2, KH, KW>(t, first, depth);
+    first += 2 * kLanes;
+  }
+  if (first + kLanes <= t.n)
+    conv_panel<1, KH, KW>(t, first, depth);
+}
+
+bool conv_tile(const ConvTile& t) {
+  using Traits = Eigen::internal::gebp_traits<float, float>;
+  static_assert(Traits::mr == 3 * kLanes && Traits::LhsProgress == kLanes && Traits::nr == 4,
+                "the panels conv_panel reproduces");
+  const Index depth = t.c * t.kh * t.kw;
+  if (t.o % 4 != 0 || t.ow % kLanes != 0 || t.p0 % kLanes != 0 || t.n % kLanes != 0 || depth == 0 ||
+      t.top != 0 || t.left != 0 || t.ow + t.kw - 1 > t.w || (t.p0 + t.n - 1) / t.ow + t.kh > t.h)
+    return false;
+  if (t.kh == 3 && t.kw == 3)
+    conv_panels<3, 3>(t, depth);
+  else
+    conv_panels<0, 0>(t, depth);
+  return true;
+}
+#else
+bool conv_tile(const ConvTile&) {
+  return false;
+}
+#endif
+
 template <typename Lhs, typename Rhs>
 void small_product(const Lhs& a, const Rhs& b, float* c, Index m, Index n, bool accumulate) {
   Eigen::Map<RowMajor> cm(c, m, n);
@@ -260,8 +370,8 @@ void eigen_blocking(const CacheSizes& caches, std::int64_t& k, std::int64_t& m, 
 }  // namespace
 
 extern const GemmKernels kGemm;
-const GemmKernels kGemm{ROPES_KERNEL_LEVEL, &block,           &pack_a,
-                        &with_packed_a,     &small,           &blocking,
-                        &eigen_blocking,    &set_eigen_caches};
+const GemmKernels kGemm{ROPES_KERNEL_LEVEL, &block,          &pack_a,
+                        &with_packed_a,     &conv_tile,      &small,
+                        &blocking,          &eigen_blocking, &set_eigen_caches};
 
 }  // namespace ropes::nn::ROPES_KERNEL_NS

@@ -30,6 +30,19 @@ struct GemmProduct {
   float* block_b;              // kc * nc floats
 };
 
+// One tile of a stride-1 convolution's forward product (conv.cpp): the output pixels
+// [p0, p0 + n) of one image, every output channel, from the image itself (padded by the
+// caller where the kernel wants top = left = 0 and every window inside).
+struct ConvTile {
+  const float* x;  // the image [c, h, w]
+  std::int64_t c, h, w, kh, kw, top, left, ow;
+  const float* weights;  // [o, c * kh * kw]
+  const float* bias;     // [o], or null
+  std::int64_t o;
+  float* y;  // the image's output [o, pixels]
+  std::int64_t pixels, p0, n;
+};
+
 struct GemmKernels {
   // the compilation's level: "x86-64-v4", "x86-64-v3", the baseline's ("x86-64", ...), with
   // " (-march=native)" in a native build
@@ -46,6 +59,11 @@ struct GemmKernels {
   // all rows and columns of c (+)= op(a) op(b) with op(a) already packed by pack_a: the bits
   // of block(p, 0, m, 0, n); b must not be transposed
   void (*with_packed_a)(const GemmProduct& p);
+  // the tile of y the blocked product of the tile's im2col matrix gives (GemmSharedA's
+  // multiply, or multiply_onto with the bias, weights packed once: the sum fits one block),
+  // bit for bit, computed straight from the image; false, with nothing written, where the
+  // level has no such kernel or the shape is not one it covers
+  bool (*conv_tile)(const ConvTile& t);
   // a tiny or vector-shaped product, whole (Eigen's coefficient-wise or GEMV expression)
   void (*small)(const GemmProduct& p);
   // Eigen 3.4's one-thread blocking heuristic at `caches` (gemm.hpp's reference_blocking)

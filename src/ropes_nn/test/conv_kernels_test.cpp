@@ -47,12 +47,24 @@ std::vector<float> values(const Buffer& b) {
 // one tile an image: the weights packed once for many), weights too deep to pack once, and one
 // small image (one tile: its whole product and im2col shared by the threads)
 const Case kCases[] = {
-    {3, 8, 128, 128, 8, 3, 1, 1, 1, 1, 1}, {1, 8, 128, 128, 16, 3, 1, 1, 1, 1, 1},
-    {2, 8, 128, 128, 8, 3, 2, 0, 0, 1, 1}, {2, 3, 37, 45, 5, 5, 1, 0, 0, 0, 0},
-    {2, 4, 40, 33, 6, 3, 2, 2, 0, 1, 3},   {2, 16, 30, 30, 12, 1, 1, 0, 0, 0, 0},
-    {2, 1, 128, 128, 8, 3, 1, 1, 1, 1, 1}, {2, 8, 20, 20, 1, 3, 1, 1, 1, 1, 1},
-    {17, 32, 6, 6, 64, 3, 1, 0, 0, 0, 0},  {9, 130, 10, 10, 40, 3, 1, 1, 1, 1, 1},
+    {3, 8, 128, 128, 8, 3, 1, 1, 1, 1, 1},
+    {1, 8, 128, 128, 16, 3, 1, 1, 1, 1, 1},
+    {2, 8, 128, 128, 8, 3, 2, 0, 0, 1, 1},
+    {2, 3, 37, 45, 5, 5, 1, 0, 0, 0, 0},
+    {2, 4, 40, 33, 6, 3, 2, 2, 0, 1, 3},
+    {2, 16, 30, 30, 12, 1, 1, 0, 0, 0, 0},
+    {2, 1, 128, 128, 8, 3, 1, 1, 1, 1, 1},
+    {2, 8, 20, 20, 1, 3, 1, 1, 1, 1, 1},
+    {17, 32, 6, 6, 64, 3, 1, 0, 0, 0, 0},
+    {9, 130, 10, 10, 40, 3, 1, 1, 1, 1, 1},
     {1, 8, 12, 12, 16, 3, 1, 1, 1, 1, 1},
+    // stride 1 with rows of whole 16-pixel vectors, for the v4 level's direct kernel: 48+32
+    // pixels (a 2-packet panel), 256 and 1024 (a last 1-packet panel; sums of 18, 9 and 72
+    // terms: 16 + 2, 8 + 1 and 72 + 0 in the even/odd split), 5x5 taps with padding 2
+    {2, 2, 5, 16, 4, 3, 1, 1, 1, 1, 1},
+    {2, 1, 16, 16, 12, 3, 1, 1, 1, 1, 1},
+    {2, 8, 32, 32, 8, 3, 1, 1, 1, 1, 1},
+    {3, 3, 4, 32, 4, 5, 1, 2, 2, 2, 2},
 };
 
 TEST(ConvKernels, TilesGiveTheWholeImagesBitsAtEveryThreadCount) {
@@ -141,6 +153,29 @@ TEST(ConvKernels, WholeImagesAreIm2colByDefinitionThenTheProduct) {
     }
   }
   set_num_threads(saved);
+}
+
+// The v4 level's direct kernel takes the padded image of a stride-1 convolution whose output
+// rows are whole 16-pixel vectors and whose output channels come in fours (else the tests
+// above would not see it), and declines the rest
+TEST(ConvKernels, TheV4LevelsDirectKernelCoversStrideOneRowsOfWholeVectors) {
+  if (std::string(gemm_kernels().level).rfind("x86-64-v4", 0) != 0)
+    GTEST_SKIP() << "the kernels in use are " << gemm_kernels().level << ", not v4";
+  struct Padded {
+    std::int64_t c, h, w, o, ow;
+    bool covered;
+  };
+  // a 3x3 window over an image already padded: ow = w - 2 where it fits
+  for (const Padded& c : {Padded{2, 7, 18, 4, 16, true}, Padded{1, 18, 18, 12, 16, true},
+                          Padded{2, 7, 18, 5, 16, false}, Padded{2, 7, 14, 4, 12, false}}) {
+    const std::vector<float> x = normals(c.c * c.h * c.w, 1);
+    const std::vector<float> w = normals(c.o * c.c * 9, 2);
+    const std::int64_t pixels = (c.h - 2) * c.ow;
+    std::vector<float> y(static_cast<std::size_t>(c.o * pixels));
+    const ConvTile tile{x.data(), c.c,      c.h,     c.w, 3,        3,      0, 0,
+                        c.ow,     w.data(), nullptr, c.o, y.data(), pixels, 0, pixels};
+    EXPECT_EQ(gemm_conv_tile(tile), c.covered) << c.c << "x" << c.h << "x" << c.w << " to " << c.o;
+  }
 }
 
 // sums over nothing (no channels, no images, no output pixels) are zeros, not a crash
