@@ -354,11 +354,9 @@ std::vector<Tensor> Ldr::member_logits(const Tensor& y) {
 }
 
 Tensor Ldr::forward(const Tensor& y) {
-  if (members_.size() == 1) {  // one classifier: its logit as it was before the option
-    const Tensor x = input_ ? (*input_)(y) : y;
-    return member_logit(members_[0], x);
-  }
   const std::vector<Tensor> logits = member_logits(y);
+  if (logits.size() == 1)  // one classifier: its logit as it was before the option
+    return logits[0];
   Tensor sum = logits[0];
   for (std::size_t k = 1; k < logits.size(); ++k)
     sum = nn::add(sum, logits[k]);

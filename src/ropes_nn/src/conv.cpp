@@ -276,21 +276,22 @@ Buffer conv_forward(const float* x, const float* w, const ConvGeometry& g, ConvT
   parallel_for(g.n * tiles, [&](int, std::int64_t begin, std::int64_t end) {
     float* col = forward_scratch(static_cast<std::size_t>(k * std::min(tile, n)));
     GemmSharedA weights(blocking, w, false, k, m, k);  // packed once for the thread's tiles
-    // the level's direct kernel where it covers the shape (it says so on the first tile): the
-    // same bits without im2col, from the image padded once
-    bool direct = g.stride == 1 && weights.packed();
+    // the level's direct kernel where it covers the tile: the same bits without im2col, from
+    // the image padded once (and only when the kernel takes it)
+    const bool direct = g.stride == 1 && weights.packed();
     float* padded = direct ? padded_scratch(static_cast<std::size_t>(g.c * hp * wp)) : nullptr;
     std::int64_t padded_image = -1;
     for (std::int64_t item = begin; item < end; ++item) {
       const std::int64_t i = item / tiles, p0 = item % tiles * tile, p1 = std::min(p0 + tile, n);
-      if (direct) {
+      const ConvTile direct_tile{
+          padded, g.c, hp,     wp, g.kh, g.kw, 0, 0, g.ow, w, bias, m, y.data() + i * m * n,
+          n,      p0,  p1 - p0};
+      if (direct && gemm_conv_tile_covers(direct_tile)) {
         if (padded_image != i)
           pad_image(x + i * image, g, padded);
         padded_image = i;
-        if (gemm_conv_tile(ConvTile{padded, g.c, hp, wp, g.kh, g.kw, 0, 0, g.ow, w, bias, m,
-                                    y.data() + i * m * n, n, p0, p1 - p0}))
-          continue;
-        direct = false;
+        gemm_conv_tile(direct_tile);
+        continue;
       }
       im2col(x + i * image, g, col, p1 - p0, p0, p1);
       float* yi = y.data() + i * m * n + p0;

@@ -168,6 +168,10 @@ bool gemm_conv_tile(const ConvTile& tile) {
   return gemm_kernels().conv_tile(tile);
 }
 
+bool gemm_conv_tile_covers(const ConvTile& tile) {
+  return gemm_kernels().conv_tile_covers(tile);
+}
+
 void GemmSharedA::multiply(const float* b, std::int64_t ldb, float* c, std::int64_t ldc,
                            std::int64_t n, bool accumulate) {
   if (packed_ == nullptr) {

@@ -95,6 +95,8 @@ class GemmSharedA {
 // gives, with the weights packed once (their sum fits one block), without building that
 // matrix; false, nothing written, where the level or the shape has none.
 bool gemm_conv_tile(const ConvTile& tile);
+// Whether gemm_conv_tile takes this tile's shape (reads none of its data).
+bool gemm_conv_tile_covers(const ConvTile& tile);
 
 // The blocking reference: the cache sizes Eigen 3.4 queries on the AMD Zen 5 machine the
 // workspace's tables were measured on (L1d 48 KiB, L2 1 MiB; L3 only needs to be non-zero).

@@ -250,14 +250,19 @@ void conv_panels(const ConvTile& t, Index depth) {
     conv_panel<1, KH, KW>(t, first, depth);
 }
 
+bool conv_tile_covers(const ConvTile& t) {
+  return t.o % 4 == 0 && t.ow % kLanes == 0 && t.p0 % kLanes == 0 && t.n % kLanes == 0 &&
+         t.c * t.kh * t.kw > 0 && t.top == 0 && t.left == 0 && t.ow + t.kw - 1 <= t.w &&
+         (t.p0 + t.n - 1) / t.ow + t.kh <= t.h;
+}
+
 bool conv_tile(const ConvTile& t) {
   using Traits = Eigen::internal::gebp_traits<float, float>;
   static_assert(Traits::mr == 3 * kLanes && Traits::LhsProgress == kLanes && Traits::nr == 4,
                 "the panels conv_panel reproduces");
-  const Index depth = t.c * t.kh * t.kw;
-  if (t.o % 4 != 0 || t.ow % kLanes != 0 || t.p0 % kLanes != 0 || t.n % kLanes != 0 || depth == 0 ||
-      t.top != 0 || t.left != 0 || t.ow + t.kw - 1 > t.w || (t.p0 + t.n - 1) / t.ow + t.kh > t.h)
+  if (!conv_tile_covers(t))
     return false;
+  const Index depth = t.c * t.kh * t.kw;
   if (t.kh == 3 && t.kw == 3)
     conv_panels<3, 3>(t, depth);
   else
@@ -265,6 +270,10 @@ bool conv_tile(const ConvTile& t) {
   return true;
 }
 #else
+bool conv_tile_covers(const ConvTile&) {
+  return false;
+}
+
 bool conv_tile(const ConvTile&) {
   return false;
 }
@@ -370,8 +379,7 @@ void eigen_blocking(const CacheSizes& caches, std::int64_t& k, std::int64_t& m, 
 }  // namespace
 
 extern const GemmKernels kGemm;
-const GemmKernels kGemm{ROPES_KERNEL_LEVEL, &block,          &pack_a,
-                        &with_packed_a,     &conv_tile,      &small,
-                        &blocking,          &eigen_blocking, &set_eigen_caches};
+const GemmKernels kGemm{ROPES_KERNEL_LEVEL, &block, &pack_a,   &with_packed_a,  &conv_tile_covers,
+                        &conv_tile,         &small, &blocking, &eigen_blocking, &set_eigen_caches};
 
 }  // namespace ropes::nn::ROPES_KERNEL_NS

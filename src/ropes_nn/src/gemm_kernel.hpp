@@ -59,6 +59,8 @@ struct GemmKernels {
   // all rows and columns of c (+)= op(a) op(b) with op(a) already packed by pack_a: the bits
   // of block(p, 0, m, 0, n); b must not be transposed
   void (*with_packed_a)(const GemmProduct& p);
+  // whether conv_tile covers the tile's shape (reads no data: a caller asks before it pads)
+  bool (*conv_tile_covers)(const ConvTile& t);
   // the tile of y the blocked product of the tile's im2col matrix gives (GemmSharedA's
   // multiply, or multiply_onto with the bias, weights packed once: the sum fits one block),
   // bit for bit, computed straight from the image; false, with nothing written, where the

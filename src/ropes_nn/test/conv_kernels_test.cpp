@@ -112,8 +112,8 @@ TEST(ConvKernels, WholeImagesAreIm2colByDefinitionThenTheProduct) {
         const std::int64_t patch = g.patch(), pixels = g.pixels(), image = g.c * g.h * g.w;
         std::vector<float> y(static_cast<std::size_t>(g.y_shape().numel()));
         std::vector<float> dx(static_cast<std::size_t>(g.x_shape().numel()), 0.0f);
-        for (std::int64_t i = 0; i < g.n; ++i) {
-          std::vector<float> col(static_cast<std::size_t>(patch * pixels));
+        // f(entry of image i's im2col matrix, the element of x it reads, or -1 outside the image)
+        const auto each_entry = [&](std::int64_t i, const auto& f) {
           for (std::int64_t ch = 0; ch < g.c; ++ch)
             for (std::int64_t ki = 0; ki < g.kh; ++ki)
               for (std::int64_t kj = 0; kj < g.kw; ++kj)
@@ -122,27 +122,24 @@ TEST(ConvKernels, WholeImagesAreIm2colByDefinitionThenTheProduct) {
                     const std::int64_t iy = oy * g.stride - g.top + ki;
                     const std::int64_t ix = ox * g.stride - g.left + kj;
                     const bool inside = iy >= 0 && iy < g.h && ix >= 0 && ix < g.w;
-                    col[static_cast<std::size_t>(((ch * g.kh + ki) * g.kw + kj) * pixels +
-                                                 oy * g.ow + ox)] =
-                        inside ? x[static_cast<std::size_t>(i * image + (ch * g.h + iy) * g.w + ix)]
-                               : 0.0f;
+                    f(static_cast<std::size_t>(((ch * g.kh + ki) * g.kw + kj) * pixels + oy * g.ow +
+                                               ox),
+                      inside ? i * image + (ch * g.h + iy) * g.w + ix : std::int64_t{-1});
                   }
+        };
+        for (std::int64_t i = 0; i < g.n; ++i) {
+          std::vector<float> col(static_cast<std::size_t>(patch * pixels));
+          each_entry(i, [&](std::size_t entry, std::int64_t at) {
+            col[entry] = at >= 0 ? x[static_cast<std::size_t>(at)] : 0.0f;
+          });
           gemm(w.data(), col.data(), y.data() + i * g.o * pixels, g.o, patch, pixels);
           // the adjoint: col = w^T gy_i, each term added into its input pixel
           gemm(w.data(), true, gy.data() + i * g.o * pixels, false, col.data(), patch, g.o, pixels,
                false);
-          for (std::int64_t ch = 0; ch < g.c; ++ch)
-            for (std::int64_t ki = 0; ki < g.kh; ++ki)
-              for (std::int64_t kj = 0; kj < g.kw; ++kj)
-                for (std::int64_t oy = 0; oy < g.oh; ++oy)
-                  for (std::int64_t ox = 0; ox < g.ow; ++ox) {
-                    const std::int64_t iy = oy * g.stride - g.top + ki;
-                    const std::int64_t ix = ox * g.stride - g.left + kj;
-                    if (iy >= 0 && iy < g.h && ix >= 0 && ix < g.w)
-                      dx[static_cast<std::size_t>(i * image + (ch * g.h + iy) * g.w + ix)] +=
-                          col[static_cast<std::size_t>(((ch * g.kh + ki) * g.kw + kj) * pixels +
-                                                       oy * g.ow + ox)];
-                  }
+          each_entry(i, [&](std::size_t entry, std::int64_t at) {
+            if (at >= 0)
+              dx[static_cast<std::size_t>(at)] += col[entry];
+          });
         }
         const std::string what = "x " + g.x_shape().str() + " stride " + std::to_string(stride) +
                                  " padding " + std::to_string(pad);
@@ -174,6 +171,7 @@ TEST(ConvKernels, TheV4LevelsDirectKernelCoversStrideOneRowsOfWholeVectors) {
     std::vector<float> y(static_cast<std::size_t>(c.o * pixels));
     const ConvTile tile{x.data(), c.c,      c.h,     c.w, 3,        3,      0, 0,
                         c.ow,     w.data(), nullptr, c.o, y.data(), pixels, 0, pixels};
+    EXPECT_EQ(gemm_conv_tile_covers(tile), c.covered) << c.c << "x" << c.h << "x" << c.w;
     EXPECT_EQ(gemm_conv_tile(tile), c.covered) << c.c << "x" << c.h << "x" << c.w << " to " << c.o;
   }
 }
