@@ -5,6 +5,8 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "ropes_nn/adam.hpp"
 #include "ropes_nn/ops.hpp"
@@ -99,6 +101,34 @@ TEST(Ops, ForwardValuesMatchHandComputation) {
 }
 
 // conv shapes and a value worked by hand
+TEST(Ops, TransposeMovesEveryElementOfEveryShape) {
+  // the tiled copy (8 x 8 tiles in bands of 16 columns) and its edges: shapes below, at and
+  // past the tile and the band, and a power-of-two square; each element checked by index
+  for (const auto& [m, n] : std::vector<std::pair<std::int64_t, std::int64_t>>{{1, 1},
+                                                                               {1, 9},
+                                                                               {9, 1},
+                                                                               {7, 7},
+                                                                               {8, 8},
+                                                                               {8, 16},
+                                                                               {16, 8},
+                                                                               {9, 17},
+                                                                               {13, 37},
+                                                                               {24, 40},
+                                                                               {33, 8},
+                                                                               {64, 12},
+                                                                               {256, 256}}) {
+    std::vector<float> values(static_cast<std::size_t>(m * n));
+    for (std::size_t i = 0; i < values.size(); ++i)
+      values[i] = static_cast<float>(i) + 0.5f;
+    const Tensor t = transpose(Tensor(Shape{m, n}, values));
+    ASSERT_EQ(t.shape(), (Shape{n, m}));
+    for (std::int64_t i = 0; i < m; ++i)
+      for (std::int64_t j = 0; j < n; ++j)
+        ASSERT_EQ(t.data()[j * m + i], values[static_cast<std::size_t>(i * n + j)])
+            << m << " x " << n << " at (" << i << ", " << j << ")";
+  }
+}
+
 TEST(Ops, ConvolutionShapesFollowFlaxPaddingAndPytorchTransposeLayout) {
   const Tensor x = Tensor::ones(Shape{1, 1, 5, 5});
   EXPECT_EQ(conv2d(x, Tensor::ones(Shape{2, 1, 3, 3})).shape(), (Shape{1, 2, 5, 5}));
