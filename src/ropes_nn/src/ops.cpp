@@ -418,18 +418,37 @@ Tensor relu(const Tensor& x) {
       });
 }
 
+namespace {
+float sigmoid_of(float v) {
+  if (v >= 0.0f)
+    return 1.0f / (1.0f + std::exp(-v));
+  const float e = std::exp(v);
+  return e / (1.0f + e);
+}
+}  // namespace
+
 Tensor sigmoid(const Tensor& x) {
   return unary(
-      x, "sigmoid",
-      [](float v) {
-        if (v >= 0.0f)
-          return 1.0f / (1.0f + std::exp(-v));
-        const float e = std::exp(v);
-        return e / (1.0f + e);
-      },
+      x, "sigmoid", [](float v) { return sigmoid_of(v); },
       [](const Grads& in, const Tensor& g) {
         // s' = s (1 - s), with s recomputed from the input (saving the output would make a
         // reference cycle through the node)
+        if (!grad_mode_enabled()) {
+          // in one pass, with the operations (and so the bits) of the graph below:
+          // g * (s * ((-s) + 1))
+          const Tensor& input = in[0];
+          Buffer r(static_cast<std::size_t>(input.numel()));
+          float* pr = r.data();
+          const float* pg = g.data();
+          const float* px = input.data();
+          elementwise_for(input.numel(), [&](std::int64_t begin, std::int64_t end) {
+            for (std::int64_t i = begin; i < end; ++i) {
+              const float s = sigmoid_of(px[i]);
+              pr[i] = pg[i] * (s * (-s + 1.0f));
+            }
+          });
+          return Grads{Tensor(input.shape(), std::move(r))};
+        }
         const Tensor s = sigmoid(in[0]);
         return Grads{mul(g, mul(s, add_scalar(neg(s), 1.0f)))};
       });

@@ -189,6 +189,29 @@ TEST(Autograd, CreateGraphGivesDifferentiableGradients) {
   EXPECT_EQ(d3.item(), 6.0f);
 }
 
+TEST(Autograd, SigmoidsOnePassGradientHasTheBitsOfItsGraph) {
+  // without create_graph sigmoid's backward runs one fused pass; with it, the same formula as
+  // recorded operations (neg, add_scalar, mul): the two gradients must be equal bit for bit
+  std::vector<float> values;
+  for (int i = -40; i <= 40; ++i)
+    values.push_back(0.37f * static_cast<float>(i) + 0.01f);
+  const Tensor x = Tensor(Shape{static_cast<std::int64_t>(values.size())}, values, true);
+  std::vector<float> weights(values.size());
+  for (std::size_t i = 0; i < weights.size(); ++i)
+    weights[i] = 1.0f + 0.013f * static_cast<float>(i);
+  const Tensor w(x.shape(), weights);
+  const Tensor loss = sum(mul(sigmoid(x), w));
+  const Tensor fused = grad({loss}, {x})[0];
+  const Tensor recorded = grad({loss}, {x}, {}, true)[0];
+  ASSERT_TRUE(recorded.requires_grad());
+  const std::vector<float> a = fused.to_vector(), b = recorded.to_vector();
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    const float s = 1.0f / (1.0f + std::exp(-values[i]));
+    EXPECT_NEAR(a[i], weights[i] * s * (1.0f - s), 1e-6f) << "at x = " << values[i];
+    EXPECT_EQ(a[i], b[i]) << "at x = " << values[i];
+  }
+}
+
 TEST(Autograd, SharedSubexpressionsAndRepeatedInputsSumTheirPaths) {
   const Tensor x = Tensor::scalar(3.0f, true);
   const Tensor y = mul(x, x);          // 2x
