@@ -91,11 +91,20 @@ void Adam::update(std::size_t i, const Tensor& grad) {
   const float* g = grad.data();
   float* m = m_[i].data();
   float* v = v_[i].data();
-  for (std::int64_t k = 0; k < p.numel(); ++k) {
-    const float gk = wd != 0.0f ? g[k] + wd * w[k] : g[k];
+  // one loop without a branch for each case, so that it vectorises (with sqrt free of errno,
+  // CMakeLists.txt): each lane does the scalar loop's operations, so the bits are the same
+  const auto update_one = [&](std::int64_t k, float gk) {
     m[k] = b1 * m[k] + (1.0f - b1) * gk;
     v[k] = b2 * v[k] + (1.0f - b2) * gk * gk;
     w[k] -= step_size * m[k] / (std::sqrt(v[k]) / correction2_sqrt + eps);
+  };
+  const std::int64_t n = p.numel();
+  if (wd != 0.0f) {
+    for (std::int64_t k = 0; k < n; ++k)
+      update_one(k, g[k] + wd * w[k]);
+  } else {
+    for (std::int64_t k = 0; k < n; ++k)
+      update_one(k, g[k]);
   }
 }
 
