@@ -425,33 +425,48 @@ float sigmoid_of(float v) {
   const float e = std::exp(v);
   return e / (1.0f + e);
 }
+
+// The sigmoid of x, whose values `s` are already computed (the forward's, or a copy): its
+// backward reads s instead of computing the exponentials again. s is a copy shared with the
+// node, not the output tensor (that would make a reference cycle through the node).
+Tensor sigmoid_with_values(const Tensor& x, Buffer values) {
+  if (!needs_graph({x}))
+    return Tensor(x.shape(), std::move(values));
+  auto s = std::make_shared<const Buffer>(values);
+  return record(x.shape(), std::move(values), {x}, "sigmoid",
+                [s](const Grads& in, const Tensor& g) {
+                  // s' = s (1 - s)
+                  if (!grad_mode_enabled()) {
+                    // in one pass, with the operations (and so the bits) of the graph below:
+                    // g * (s * ((-s) + 1))
+                    Buffer r(s->size());
+                    float* pr = r.data();
+                    const float* pg = g.data();
+                    const float* ps = s->data();
+                    elementwise_for(static_cast<std::int64_t>(s->size()),
+                                    [&](std::int64_t begin, std::int64_t end) {
+                                      for (std::int64_t i = begin; i < end; ++i)
+                                        pr[i] = pg[i] * (ps[i] * (-ps[i] + 1.0f));
+                                    });
+                    return Grads{Tensor(in[0].shape(), std::move(r))};
+                  }
+                  // create_graph: s as a node of x again, so that s' has its own derivative
+                  const Tensor sx = sigmoid_with_values(in[0], Buffer(s->begin(), s->end()));
+                  return Grads{mul(g, mul(sx, add_scalar(neg(sx), 1.0f)))};
+                });
+}
 }  // namespace
 
 Tensor sigmoid(const Tensor& x) {
-  return unary(
-      x, "sigmoid", [](float v) { return sigmoid_of(v); },
-      [](const Grads& in, const Tensor& g) {
-        // s' = s (1 - s), with s recomputed from the input (saving the output would make a
-        // reference cycle through the node)
-        if (!grad_mode_enabled()) {
-          // in one pass, with the operations (and so the bits) of the graph below:
-          // g * (s * ((-s) + 1))
-          const Tensor& input = in[0];
-          Buffer r(static_cast<std::size_t>(input.numel()));
-          float* pr = r.data();
-          const float* pg = g.data();
-          const float* px = input.data();
-          elementwise_for(input.numel(), [&](std::int64_t begin, std::int64_t end) {
-            for (std::int64_t i = begin; i < end; ++i) {
-              const float s = sigmoid_of(px[i]);
-              pr[i] = pg[i] * (s * (-s + 1.0f));
-            }
-          });
-          return Grads{Tensor(input.shape(), std::move(r))};
-        }
-        const Tensor s = sigmoid(in[0]);
-        return Grads{mul(g, mul(s, add_scalar(neg(s), 1.0f)))};
-      });
+  require_defined(x, "sigmoid", "x");
+  Buffer r(static_cast<std::size_t>(x.numel()));
+  float* pr = r.data();
+  const float* p = x.data();
+  elementwise_for(x.numel(), [&](std::int64_t begin, std::int64_t end) {
+    for (std::int64_t i = begin; i < end; ++i)
+      pr[i] = sigmoid_of(p[i]);
+  });
+  return sigmoid_with_values(x, std::move(r));
 }
 
 // --- shape ----------------------------------------------------------------------------------
