@@ -426,14 +426,13 @@ float sigmoid_of(float v) {
   return e / (1.0f + e);
 }
 
-// The sigmoid of x, whose values `s` are already computed (the forward's, or a copy): its
-// backward reads s instead of computing the exponentials again. s is a copy shared with the
-// node, not the output tensor (that would make a reference cycle through the node).
-Tensor sigmoid_with_values(const Tensor& x, Buffer values) {
-  if (!needs_graph({x}))
-    return Tensor(x.shape(), std::move(values));
-  auto s = std::make_shared<const Buffer>(values);
-  return record(x.shape(), std::move(values), {x}, "sigmoid",
+// The sigmoid node of x whose values `s` are already computed: its backward reads s instead
+// of computing the exponentials again. The node shares s (not the output tensor, which would
+// make a reference cycle through the node); the output holds a copy. Unlike other nodes it
+// does not see a write into x between the forward and the backward, which tensor.hpp rules
+// out (write only between steps).
+Tensor sigmoid_node(const Tensor& x, std::shared_ptr<const Buffer> s) {
+  return record(x.shape(), Buffer(s->begin(), s->end()), {x}, "sigmoid",
                 [s](const Grads& in, const Tensor& g) {
                   // s' = s (1 - s)
                   if (!grad_mode_enabled()) {
@@ -450,8 +449,9 @@ Tensor sigmoid_with_values(const Tensor& x, Buffer values) {
                                     });
                     return Grads{Tensor(in[0].shape(), std::move(r))};
                   }
-                  // create_graph: s as a node of x again, so that s' has its own derivative
-                  const Tensor sx = sigmoid_with_values(in[0], Buffer(s->begin(), s->end()));
+                  // create_graph: s as a node of x again (sharing the same values), so that
+                  // s' has its own derivative
+                  const Tensor sx = sigmoid_node(in[0], s);
                   return Grads{mul(g, mul(sx, add_scalar(neg(sx), 1.0f)))};
                 });
 }
@@ -466,7 +466,9 @@ Tensor sigmoid(const Tensor& x) {
     for (std::int64_t i = begin; i < end; ++i)
       pr[i] = sigmoid_of(p[i]);
   });
-  return sigmoid_with_values(x, std::move(r));
+  if (!needs_graph({x}))
+    return Tensor(x.shape(), std::move(r));
+  return sigmoid_node(x, std::make_shared<const Buffer>(std::move(r)));
 }
 
 // --- shape ----------------------------------------------------------------------------------

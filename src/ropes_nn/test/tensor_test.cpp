@@ -100,23 +100,13 @@ TEST(Ops, ForwardValuesMatchHandComputation) {
             (std::vector<float>{0.25f, -0.25f}));
 }
 
-// conv shapes and a value worked by hand
 TEST(Ops, TransposeMovesEveryElementOfEveryShape) {
   // the tiled copy (8 x 8 tiles in bands of 16 columns) and its edges: shapes below, at and
   // past the tile and the band, and a power-of-two square; each element checked by index
-  for (const auto& [m, n] : std::vector<std::pair<std::int64_t, std::int64_t>>{{1, 1},
-                                                                               {1, 9},
-                                                                               {9, 1},
-                                                                               {7, 7},
-                                                                               {8, 8},
-                                                                               {8, 16},
-                                                                               {16, 8},
-                                                                               {9, 17},
-                                                                               {13, 37},
-                                                                               {24, 40},
-                                                                               {33, 8},
-                                                                               {64, 12},
-                                                                               {256, 256}}) {
+  const std::vector<std::pair<std::int64_t, std::int64_t>> shapes = {
+      {1, 1},  {1, 9},   {9, 1},   {7, 7},  {8, 8},   {8, 16},   {16, 8},
+      {9, 17}, {13, 37}, {24, 40}, {33, 8}, {64, 12}, {256, 256}};
+  for (const auto& [m, n] : shapes) {
     std::vector<float> values(static_cast<std::size_t>(m * n));
     for (std::size_t i = 0; i < values.size(); ++i)
       values[i] = static_cast<float>(i) + 0.5f;
@@ -129,6 +119,7 @@ TEST(Ops, TransposeMovesEveryElementOfEveryShape) {
   }
 }
 
+// conv shapes and a value worked by hand
 TEST(Ops, ConvolutionShapesFollowFlaxPaddingAndPytorchTransposeLayout) {
   const Tensor x = Tensor::ones(Shape{1, 1, 5, 5});
   EXPECT_EQ(conv2d(x, Tensor::ones(Shape{2, 1, 3, 3})).shape(), (Shape{1, 2, 5, 5}));
