@@ -1252,7 +1252,7 @@ TEST_F(Pipeline, RopesRunResumesInsideItsStagesAndEndsWithTheTable) {
       << other.text;
 }
 
-// The `small` 1C preset end to end (label `preset`, 8 to 10 minutes on 2 cores; out of
+// The `small` 1C preset end to end (label `preset`, about 6 minutes on 2 cores; out of
 // ci/test's default run, `ROPES_WITH_PRESET=1 bash ci/test` runs it): `ropes-run
 // 1c-small` with seed 0, the id suite by the paper's protocol. Where the values were measured
 // (the default dispatch build's x86-64-v4 kernels, g++ 12.2, Eigen 3.4.0, Release) each
@@ -1372,7 +1372,7 @@ struct SuitePin {
   }
 }
 
-// 1C: 10,000 training anchors and their own id test set. About 14 minutes.
+// 1C: 10,000 training anchors and their own id test set. About 11 minutes.
 TEST_F(Pipeline, SmallPresetPlusOneCameraReachesTheMeasuredMcc) {
 #if defined(ROPES_PIPELINE_SANITIZED)
   GTEST_SKIP() << "the cut-short small preset above covers this code under the sanitizers";
