@@ -407,9 +407,9 @@ class ConvNode final : public Node {
   const char* name() const override { return "conv2d"; }
   std::vector<Tensor> backward(const Tensor& gy) override {
     std::vector<Tensor> r(2);
-    if (inputs[0].requires_grad())
+    if (input_grad_wanted(inputs[0]))
       r[0] = conv_input_grad_op(gy, inputs[1], g_);
-    if (inputs[1].requires_grad())
+    if (input_grad_wanted(inputs[1]))
       r[1] = conv_weight_grad_op(inputs[0], gy, g_);
     return r;
   }
@@ -425,9 +425,9 @@ class ConvInputGradNode final : public Node {
   // inputs: gy, w; the upstream gradient h has x's shape
   std::vector<Tensor> backward(const Tensor& h) override {
     std::vector<Tensor> r(2);
-    if (inputs[0].requires_grad())
+    if (input_grad_wanted(inputs[0]))
       r[0] = conv_op(h, inputs[1], g_);
-    if (inputs[1].requires_grad())
+    if (input_grad_wanted(inputs[1]))
       r[1] = conv_weight_grad_op(h, inputs[0], g_);
     return r;
   }
@@ -443,9 +443,9 @@ class ConvWeightGradNode final : public Node {
   // inputs: x, gy; the upstream gradient h has w's shape
   std::vector<Tensor> backward(const Tensor& h) override {
     std::vector<Tensor> r(2);
-    if (inputs[0].requires_grad())
+    if (input_grad_wanted(inputs[0]))
       r[0] = conv_input_grad_op(inputs[1], h, g_);
-    if (inputs[1].requires_grad())
+    if (input_grad_wanted(inputs[1]))
       r[1] = conv_op(inputs[0], h, g_);
     return r;
   }

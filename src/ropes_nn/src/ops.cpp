@@ -297,7 +297,12 @@ Tensor add(const Tensor& a, const Tensor& b) {
   const Shape out = broadcast_shape(a.shape(), b.shape(), "add");
   return record(out, broadcast_apply(a, b, out, [](float x, float y) { return x + y; }), {a, b},
                 "add", [](const Grads& in, const Tensor& g) {
-                  return Grads{sum_to(g, in[0].shape()), sum_to(g, in[1].shape())};
+                  Grads r(2);
+                  if (input_grad_wanted(in[0]))
+                    r[0] = sum_to(g, in[0].shape());
+                  if (input_grad_wanted(in[1]))
+                    r[1] = sum_to(g, in[1].shape());
+                  return r;
                 });
 }
 
@@ -307,7 +312,12 @@ Tensor sub(const Tensor& a, const Tensor& b) {
   const Shape out = broadcast_shape(a.shape(), b.shape(), "sub");
   return record(out, broadcast_apply(a, b, out, [](float x, float y) { return x - y; }), {a, b},
                 "sub", [](const Grads& in, const Tensor& g) {
-                  return Grads{sum_to(g, in[0].shape()), sum_to(neg(g), in[1].shape())};
+                  Grads r(2);
+                  if (input_grad_wanted(in[0]))
+                    r[0] = sum_to(g, in[0].shape());
+                  if (input_grad_wanted(in[1]))
+                    r[1] = sum_to(neg(g), in[1].shape());
+                  return r;
                 });
 }
 
@@ -318,9 +328,9 @@ Tensor mul(const Tensor& a, const Tensor& b) {
   return record(out, broadcast_apply(a, b, out, [](float x, float y) { return x * y; }), {a, b},
                 "mul", [](const Grads& in, const Tensor& g) {
                   Grads r(2);
-                  if (in[0].requires_grad())
+                  if (input_grad_wanted(in[0]))
                     r[0] = sum_to(mul(g, in[1]), in[0].shape());
-                  if (in[1].requires_grad())
+                  if (input_grad_wanted(in[1]))
                     r[1] = sum_to(mul(g, in[0]), in[1].shape());
                   return r;
                 });
@@ -333,9 +343,9 @@ Tensor div(const Tensor& a, const Tensor& b) {
   return record(out, broadcast_apply(a, b, out, [](float x, float y) { return x / y; }), {a, b},
                 "div", [](const Grads& in, const Tensor& g) {
                   Grads r(2);
-                  if (in[0].requires_grad())
+                  if (input_grad_wanted(in[0]))
                     r[0] = sum_to(div(g, in[1]), in[0].shape());
-                  if (in[1].requires_grad()) {
+                  if (input_grad_wanted(in[1])) {
                     // d(a/b)/db = -a / b^2
                     r[1] = sum_to(neg(div(mul(g, in[0]), square(in[1]))), in[1].shape());
                   }
@@ -722,9 +732,9 @@ Tensor matmul(const Tensor& a, const Tensor& b) {
   gemm(a.data(), b.data(), r.data(), m, k, n);
   return record(Shape{m, n}, std::move(r), {a, b}, "matmul", [](const Grads& in, const Tensor& g) {
     Grads grads(2);
-    if (in[0].requires_grad())
+    if (input_grad_wanted(in[0]))
       grads[0] = matmul(g, transpose(in[1]));
-    if (in[1].requires_grad())
+    if (input_grad_wanted(in[1]))
       grads[1] = matmul(transpose(in[0]), g);
     return grads;
   });

@@ -253,6 +253,23 @@ Tensor make_op_result(const Shape& shape, Buffer values, std::shared_ptr<Node> n
 
 namespace {
 
+// the tensors on a path to what the innermost running grad() asks for (null outside grad());
+// a node's backward that calls grad() itself (group norm's) nests a call of its own
+thread_local const std::unordered_set<const TensorImpl*>* t_needed = nullptr;
+
+class NeededGuard {
+ public:
+  explicit NeededGuard(const std::unordered_set<const TensorImpl*>* needed) : previous_(t_needed) {
+    t_needed = needed;
+  }
+  ~NeededGuard() { t_needed = previous_; }
+  NeededGuard(const NeededGuard&) = delete;
+  NeededGuard& operator=(const NeededGuard&) = delete;
+
+ private:
+  const std::unordered_set<const TensorImpl*>* previous_;
+};
+
 std::vector<Tensor> grad_impl(const std::vector<Tensor>& outputs, const std::vector<Tensor>& inputs,
                               const std::vector<Tensor>& grad_outputs, bool create_graph,
                               bool allow_unused, bool stop_at_inputs) {
@@ -339,6 +356,7 @@ std::vector<Tensor> grad_impl(const std::vector<Tensor>& outputs, const std::vec
   }
 
   // walk from the outputs towards the inputs, pushing each gradient to the node's inputs
+  const NeededGuard needed_while_walking(&needed);
   for (auto it = order.rbegin(); it != order.rend(); ++it) {
     const Tensor& t = *it;
     const std::shared_ptr<Node>& node = t.grad_fn();
@@ -381,6 +399,10 @@ std::vector<Tensor> grad_impl(const std::vector<Tensor>& outputs, const std::vec
 }
 
 }  // namespace
+
+bool input_grad_wanted(const Tensor& input) {
+  return input.requires_grad() && (t_needed == nullptr || t_needed->count(input.id()) > 0);
+}
 
 std::vector<Tensor> grad(const std::vector<Tensor>& outputs, const std::vector<Tensor>& inputs,
                          const std::vector<Tensor>& grad_outputs, bool create_graph,

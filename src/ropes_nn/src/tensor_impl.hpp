@@ -19,6 +19,12 @@ struct TensorImpl {
 }  // namespace ropes::nn
 
 namespace ropes::nn {
+// Whether a node's backward should compute the gradient of its input `input`: the input
+// requires one and, while grad() runs that backward, lies on a path to a tensor the call asks
+// for (grad() keeps no other gradient, so a backward that skips the rest changes no result:
+// J^T v through a decoder then computes no weight gradients).
+bool input_grad_wanted(const Tensor& input);
+
 // Whether an operation on `inputs` (a list or a vector of tensors) records a graph: grad
 // mode is on and an input requires grad. Operations build their node (and the list of
 // inputs) only then, so that a forward pass without grad mode allocates nothing beyond its

@@ -203,6 +203,27 @@ TEST(Autograd, SigmoidsOnePassGradientHasTheBitsOfItsGraph) {
   }
 }
 
+TEST(Autograd, GradForAnInputComputesNoGradientOfWeightsItDoesNotAskFor) {
+  // y = relu(x W1) W2, W1 and W2 requiring grad: grad(y, x) needs one product per matmul
+  // (g W^T), not the weights' (x^T g), which grad() would throw away; counted in FLOPs, and
+  // the gradient is the same as the one computed beside the weights' in one call
+  const Tensor x = Tensor(Shape{16, 8}, std::vector<float>(128, 0.25f), true);
+  std::vector<float> w1(8 * 32), w2(32 * 4);
+  for (std::size_t i = 0; i < w1.size(); ++i)
+    w1[i] = static_cast<float>(i % 7) * 0.1f - 0.3f;
+  for (std::size_t i = 0; i < w2.size(); ++i)
+    w2[i] = static_cast<float>(i % 5) * 0.2f - 0.4f;
+  const Tensor W1 = Tensor(Shape{8, 32}, w1, true), W2 = Tensor(Shape{32, 4}, w2, true);
+  const Tensor loss = sum(matmul(relu(matmul(x, W1)), W2));
+  reset_flop_count();
+  const Tensor gx = grad({loss}, {x})[0];
+  EXPECT_EQ(flop_count(), 2u * (16 * 4 * 32 + 16 * 32 * 8));  // g W2^T, then g W1^T
+  reset_flop_count();
+  const std::vector<Tensor> all = grad({loss}, {x, W1, W2});
+  EXPECT_EQ(flop_count(), 4u * (16 * 4 * 32 + 16 * 32 * 8));  // and x^T g for each weight
+  EXPECT_EQ(gx.to_vector(), all[0].to_vector());
+}
+
 TEST(Autograd, SharedSubexpressionsAndRepeatedInputsSumTheirPaths) {
   const Tensor x = Tensor::scalar(3.0f, true);
   const Tensor y = mul(x, x);          // 2x
