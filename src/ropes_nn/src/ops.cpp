@@ -211,27 +211,59 @@ int normalize_axis(int axis, int rank, const char* op) {
 }
 
 // sums x over the aligned-rank-4 axes marked in `reduce`; the result has the rank-4 shape
-// with those axes set to 1 (row-major), accumulated in double
+// with those axes set to 1 (row-major), accumulated in double. Each output's sum runs over its
+// elements in x's order from 0.0, one addition at a time (what one pass over x in order gives
+// it), so its bits do not depend on how the outputs are spread: four outputs' sums are
+// interleaved (independent chains of additions) and groups of outputs go to the threads.
 Buffer reduce_sum4(const Tensor& x, const std::array<bool, 4>& reduce, Dims4* out_dims) {
   const Dims4 xd = align4(x.shape());
-  Dims4 od = xd;
+  Dims4 od = xd, extent{};
+  const Dims4 xs = {xd[1] * xd[2] * xd[3], xd[2] * xd[3], xd[3], 1};
   for (std::size_t i = 0; i < 4; ++i) {
-    if (reduce[i])
-      od[i] = 1;
+    od[i] = reduce[i] ? 1 : xd[i];
+    extent[i] = reduce[i] ? xd[i] : 1;
   }
-  const Dims4 os = broadcast_strides(od, xd);
-  std::vector<double> acc(static_cast<std::size_t>(od[0] * od[1] * od[2] * od[3]), 0.0);
+  const std::int64_t outputs = od[0] * od[1] * od[2] * od[3];
+  Buffer r(static_cast<std::size_t>(outputs));
   const float* p = x.data();
-  std::size_t k = 0;
-  for (std::int64_t i0 = 0; i0 < xd[0]; ++i0)
-    for (std::int64_t i1 = 0; i1 < xd[1]; ++i1)
-      for (std::int64_t i2 = 0; i2 < xd[2]; ++i2)
-        for (std::int64_t i3 = 0; i3 < xd[3]; ++i3) {
-          acc[static_cast<std::size_t>(i0 * os[0] + i1 * os[1] + i2 * os[2] + i3 * os[3])] +=
-              p[k++];
+  constexpr std::int64_t kChains = 4;
+  const std::int64_t groups = (outputs + kChains - 1) / kChains;
+  const auto sum_groups = [&](std::int64_t first, std::int64_t last) {
+    for (std::int64_t group = first; group < last; ++group) {
+      const std::int64_t o0 = group * kChains;
+      const std::int64_t count = std::min(kChains, outputs - o0);
+      std::int64_t base[kChains];
+      double acc[kChains] = {};
+      for (std::int64_t j = 0; j < kChains; ++j) {
+        // output o's index along each kept axis (row-major over od), a padding chain
+        // repeating the last output
+        std::int64_t o = o0 + std::min(j, count - 1), offset = 0;
+        for (int axis = 3; axis >= 0; --axis) {
+          const auto k = static_cast<std::size_t>(axis);
+          offset += o % od[k] * xs[k];
+          o /= od[k];
         }
+        base[j] = offset;
+      }
+      for (std::int64_t r0 = 0; r0 < extent[0]; ++r0)
+        for (std::int64_t r1 = 0; r1 < extent[1]; ++r1)
+          for (std::int64_t r2 = 0; r2 < extent[2]; ++r2) {
+            const std::int64_t off = r0 * xs[0] + r1 * xs[1] + r2 * xs[2];
+            for (std::int64_t r3 = 0; r3 < extent[3]; ++r3)
+              for (std::int64_t j = 0; j < kChains; ++j)
+                acc[j] += p[base[j] + off + r3 * xs[3]];
+          }
+      for (std::int64_t j = 0; j < count; ++j)
+        r[static_cast<std::size_t>(o0 + j)] = static_cast<float>(acc[j]);
+    }
+  };
+  if (x.numel() < kParallelElements || groups == 1)
+    sum_groups(0, groups);
+  else
+    parallel_for(groups,
+                 [&](int, std::int64_t first, std::int64_t last) { sum_groups(first, last); });
   *out_dims = od;
-  return Buffer(acc.begin(), acc.end());
+  return r;
 }
 
 }  // namespace

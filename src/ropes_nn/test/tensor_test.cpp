@@ -119,6 +119,40 @@ TEST(Ops, TransposeMovesEveryElementOfEveryShape) {
   }
 }
 
+TEST(Ops, SumsRunOverEachOutputsElementsInOrderInDouble) {
+  // every set of axes of a [5, 6, 7, 9] tensor (and one large enough for the threads): each
+  // output the double sum of its elements in row-major order from 0, rounded once to float,
+  // bit for bit (what the plain loop over x gave; the sums are now interleaved and threaded)
+  for (const Shape& shape : {Shape{5, 6, 7, 9}, Shape{8, 16, 33, 35}}) {
+    std::vector<float> values(static_cast<std::size_t>(shape.numel()));
+    for (std::size_t i = 0; i < values.size(); ++i)
+      values[i] = std::sin(static_cast<float>(i) * 0.37f) * (1.0f + static_cast<float>(i % 11));
+    const Tensor x(shape, values);
+    for (int mask = 1; mask < 16; ++mask) {
+      std::vector<int> axes;
+      for (int a = 0; a < 4; ++a)
+        if (mask & (1 << a))
+          axes.push_back(a);
+      const Tensor s = sum(x, axes, true);
+      std::vector<double> expected(static_cast<std::size_t>(s.numel()), 0.0);
+      std::int64_t k = 0;
+      for (std::int64_t i0 = 0; i0 < shape[0]; ++i0)
+        for (std::int64_t i1 = 0; i1 < shape[1]; ++i1)
+          for (std::int64_t i2 = 0; i2 < shape[2]; ++i2)
+            for (std::int64_t i3 = 0; i3 < shape[3]; ++i3) {
+              const std::int64_t idx[4] = {i0, i1, i2, i3};
+              std::int64_t o = 0;
+              for (int a = 0; a < 4; ++a)
+                o = o * s.shape()[a] + ((mask & (1 << a)) ? 0 : idx[a]);
+              expected[static_cast<std::size_t>(o)] += values[static_cast<std::size_t>(k++)];
+            }
+      for (std::size_t o = 0; o < expected.size(); ++o)
+        ASSERT_EQ(s.data()[o], static_cast<float>(expected[o]))
+            << shape.str() << " axes mask " << mask << " output " << o;
+    }
+  }
+}
+
 // conv shapes and a value worked by hand
 TEST(Ops, ConvolutionShapesFollowFlaxPaddingAndPytorchTransposeLayout) {
   const Tensor x = Tensor::ones(Shape{1, 1, 5, 5});
