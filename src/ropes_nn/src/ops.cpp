@@ -162,9 +162,9 @@ Buffer broadcast_apply(const Tensor& a, const Tensor& b, const Shape& out, F f) 
   return r;
 }
 
-template <typename F, typename B>
-Tensor unary(const Tensor& x, const char* name, F f, B&& backward) {
-  require_defined(x, name, "x");
+// f of each of x's values, in a new buffer (on the threads for large tensors)
+template <typename F>
+Buffer map_values(const Tensor& x, F f) {
   Buffer r(static_cast<std::size_t>(x.numel()));
   float* pr = r.data();
   const float* p = x.data();
@@ -172,20 +172,19 @@ Tensor unary(const Tensor& x, const char* name, F f, B&& backward) {
     for (std::int64_t i = begin; i < end; ++i)
       pr[i] = f(p[i]);
   });
-  return record(x.shape(), std::move(r), {x}, name, std::forward<B>(backward));
+  return r;
+}
+
+template <typename F, typename B>
+Tensor unary(const Tensor& x, const char* name, F f, B&& backward) {
+  require_defined(x, name, "x");
+  return record(x.shape(), map_values(x, f), {x}, name, std::forward<B>(backward));
 }
 
 // a constant tensor (no graph) computed elementwise from x's values
 template <typename F>
 Tensor constant_map(const Tensor& x, F f) {
-  Buffer r(static_cast<std::size_t>(x.numel()));
-  float* pr = r.data();
-  const float* p = x.data();
-  elementwise_for(x.numel(), [&](std::int64_t begin, std::int64_t end) {
-    for (std::int64_t i = begin; i < end; ++i)
-      pr[i] = f(p[i]);
-  });
-  return Tensor(x.shape(), std::move(r));
+  return Tensor(x.shape(), map_values(x, f));
 }
 
 // g masked where x <= 0, in one pass: relu's backward when no graph is recorded
@@ -501,13 +500,7 @@ Tensor sigmoid_node(const Tensor& x, std::shared_ptr<const Buffer> s) {
 
 Tensor sigmoid(const Tensor& x) {
   require_defined(x, "sigmoid", "x");
-  Buffer r(static_cast<std::size_t>(x.numel()));
-  float* pr = r.data();
-  const float* p = x.data();
-  elementwise_for(x.numel(), [&](std::int64_t begin, std::int64_t end) {
-    for (std::int64_t i = begin; i < end; ++i)
-      pr[i] = sigmoid_of(p[i]);
-  });
+  Buffer r = map_values(x, sigmoid_of);
   if (!needs_graph({x}))
     return Tensor(x.shape(), std::move(r));
   return sigmoid_node(x, std::make_shared<const Buffer>(std::move(r)));
