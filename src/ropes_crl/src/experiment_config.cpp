@@ -219,7 +219,7 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
     reject_unknown_keys(
         l, "config.ldr",
         {"widths", "hidden", "batch_size", "max_epochs", "patience", "held_out_fraction",
-         "optimizer", "input_normalization", "pair_loss", "members"});
+         "optimizer", "input_normalization", "pair_loss", "members", "weight_average"});
     c.ldr.in_channels = c.code_channels();
     c.ldr.input_size = side;
     c.ldr.widths = get_ints(l, "config.ldr", "widths");
@@ -246,6 +246,18 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
       double w = 0;
       weighted_term(l, "config.ldr", "pair_loss", "{\"weight\"}", {"weight"}, w);
       c.ldr_training.pair_loss.weight = w;
+    }
+    if (l.contains("weight_average")) {  // optional, an extension: off when absent
+      const std::string at = "config.ldr.weight_average";
+      const nlohmann::json& o = field(l, "config.ldr", "weight_average");
+      if (!o.is_object())
+        throw std::invalid_argument(at + ": expected an object {\"decay\"}, got a " +
+                                    std::string(o.type_name()));
+      reject_unknown_keys(o, at, {"decay"});
+      const double decay = get_double(o, at, "decay");
+      if (!(decay > 0 && decay < 1))
+        throw std::invalid_argument(at + ".decay: expected in (0, 1), got " + number_text(decay));
+      c.ldr_training.weight_average.decay = decay;
     }
 
     // AE2

@@ -58,6 +58,39 @@ std::pair<double, double> ldr_evaluate(Ldr& net, const TrainingData& data,
   return {loss / static_cast<double>(rows.size()), correct / static_cast<double>(rows.size())};
 }
 
+// ldr.weight_average: the running average of a network's trained weights (LdrWeightAverage)
+class WeightAverage {
+ public:
+  WeightAverage(std::vector<Tensor> weights, double decay)
+      : weights_(std::move(weights)), decay_(decay) {
+    for (const Tensor& w : weights_)
+      average_.push_back(w.to_vector());
+  }
+  // after each optimiser step
+  void update() {
+    const auto d = static_cast<float>(
+        std::min(decay_, static_cast<double>(1 + step_) / static_cast<double>(10 + step_)));
+    ++step_;
+    for (std::size_t i = 0; i < weights_.size(); ++i) {
+      float* e = average_[i].data();
+      const float* w = weights_[i].data();
+      for (std::size_t j = 0; j < average_[i].size(); ++j)
+        e[j] = d * e[j] + (1.0f - d) * w[j];
+    }
+  }
+  // exchanges the averaged and the trained values in the network's weights (between steps)
+  void swap() {
+    for (std::size_t i = 0; i < weights_.size(); ++i)
+      std::swap_ranges(average_[i].begin(), average_[i].end(), weights_[i].mutable_data());
+  }
+
+ private:
+  std::vector<Tensor> weights_;
+  std::vector<std::vector<float>> average_;
+  double decay_;
+  std::int64_t step_ = 0;
+};
+
 }  // namespace
 
 LdrOutcome train_ldr(const ExperimentConfig& config, const TrainingData& data,
@@ -87,6 +120,15 @@ LdrOutcome train_ldr(const ExperimentConfig& config, const TrainingData& data,
       partner[r2] = r1;
     }
   nn::Adam adam(net.trained_parameters(), nn::AdamOptions{t.optimizer.lr});
+  // the weight average (an extension): evaluated, early-stopped and saved in place of the
+  // trained weights
+  std::unique_ptr<WeightAverage> average;
+  if (t.weight_average.decay > 0) {
+    std::vector<Tensor> trained;
+    for (const auto& [name, w] : net.trained_parameters())
+      trained.push_back(w);
+    average = std::make_unique<WeightAverage>(std::move(trained), t.weight_average.decay);
+  }
   const std::int64_t batches =
       (static_cast<std::int64_t>(train_rows.size()) + t.batch_size - 1) / t.batch_size;
   nn::LrSchedule schedule = t.optimizer.make_schedule(batches * t.max_epochs);
@@ -160,7 +202,11 @@ LdrOutcome train_ldr(const ExperimentConfig& config, const TrainingData& data,
         return nn::mul_scalar(nn::concat(terms, 0), static_cast<float>(logits.size()));
       });
       train_loss += checked_step(adam, loss, so, "ldr " + joint.name, weights).loss;
+      if (average)
+        average->update();
     }
+    if (average)  // the averaged weights in place until the epoch's end
+      average->swap();
     const auto [loss, accuracy] = ldr_evaluate(net, data, held_rows, joint.regime2);
     metrics.append({{"stage", "ldr"},
                     {"joint", joint.name},
@@ -182,6 +228,8 @@ LdrOutcome train_ldr(const ExperimentConfig& config, const TrainingData& data,
     } else {
       ++since_best;
     }
+    if (average)
+      average->swap();
   }
   // the early-stopped weights
   std::vector<Tensor> params = net.parameters();

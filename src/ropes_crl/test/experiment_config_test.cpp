@@ -194,6 +194,24 @@ TEST(ExperimentConfig, ErrorsNameTheFileTheFieldAndTheValue) {
   j["ldr"]["members"] = 3;
   EXPECT_EQ(ExperimentConfig::from_json(j, "test.json").ldr.members, 3);
   EXPECT_EQ(c.ldr.members, 1) << "one classifier when absent";
+  // the LDRs' weight average (an extension, off when absent): {"decay" in (0, 1)}
+  j = c.raw;
+  j["ldr"]["weight_average"] = 0.99;
+  EXPECT_NE(error_of(j).find("config.ldr.weight_average: expected an object {\"decay\"}, got a "
+                             "number"),
+            std::string::npos)
+      << error_of(j);
+  j["ldr"]["weight_average"] = {{"decay", 1}};
+  EXPECT_NE(error_of(j).find("config.ldr.weight_average.decay: expected in (0, 1), got 1"),
+            std::string::npos)
+      << error_of(j);
+  j["ldr"]["weight_average"] = {{"decay", 0.9}, {"start", 2}};
+  EXPECT_NE(error_of(j).find("config.ldr.weight_average.start: unknown key"), std::string::npos)
+      << error_of(j);
+  j["ldr"]["weight_average"] = {{"decay", 0.99}};
+  EXPECT_DOUBLE_EQ(ExperimentConfig::from_json(j, "test.json").ldr_training.weight_average.decay,
+                   0.99);
+  EXPECT_DOUBLE_EQ(c.ldr_training.weight_average.decay, 0.0) << "off when absent";
   // AE2's logit term (an extension, off when absent): {"weight" > 0}
   j = c.raw;
   j["ae2"]["logit_loss"] = {{"weight", -1}};

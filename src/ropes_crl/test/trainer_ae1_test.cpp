@@ -89,6 +89,7 @@ TEST_F(TrainerAe1, TheExtensionsReadNoAngle) {
   add_pair_heads(config_);
   nlohmann::json raw = config_.raw;
   raw["ldr"]["pair_loss"] = {{"weight", 1.0}};
+  raw["ldr"]["weight_average"] = {{"decay", 0.9}};
   raw["ae2"]["logit_loss"] = {{"weight", 1.0}};
   raw["ae1"]["occlusion_augmentation"] = {
       {"probability", 0.5}, {"min_size", 2}, {"max_size", config_.image_size / 2}};

@@ -106,5 +106,44 @@ TEST_F(TrainerLdr, EachMemberOfAnEnsembleTrainsAsASingleLdrWould) {
   EXPECT_TRUE(r.ldr(kJoints[0]).has_value());
 }
 
+// ldr.weight_average saves the average of the weights over the steps, which starts at the
+// initial weights w0 and after step t mixes in the trained weights with d_t = min(decay,
+// (1 + t) / (10 + t)). With one step (one batch an epoch, one epoch) the saved weights are
+// d_0 w0 + (1 - d_0) w1, w1 the plain run's: decay 0.5 gives 0.1 w0 + 0.9 w1 and decay 0.05
+// gives 0.05 w0 + 0.95 w1, which eliminating w0 is the midpoint of the first and w1. The
+// witness is that algebra; a saved copy of the trained weights, or a decay without its warm-up
+// (0.5 w0 + 0.5 w1), fails it.
+TEST_F(TrainerLdr, TheWeightAverageIsSavedAndStartsFromTheInitialWeights) {
+  config_.ldr_training.max_epochs = 1;
+  config_.ldr_training.batch_size = 1 << 20;  // every training row in one batch: one step
+  const fs::path plain = train_to("plain", 2, options_);
+  config_.ldr_training.weight_average.decay = 0.5;
+  const fs::path half = train_to("half", 2, options_);
+  config_.ldr_training.weight_average.decay = 0.05;
+  const fs::path twentieth = train_to("twentieth", 2, options_);
+  for (const char* joint : kJoints) {
+    const std::string file = std::string("ldr.") + joint + ".safetensors";
+    Ldr w1(config_.ldr), a1(config_.ldr), a2(config_.ldr);
+    nn::load_module(w1, plain / file);
+    nn::load_module(a1, half / file);
+    nn::load_module(a2, twentieth / file);
+    const auto p1 = w1.named_parameters(), q1 = a1.named_parameters(), q2 = a2.named_parameters();
+    ASSERT_EQ(p1.size(), q1.size());
+    double worst = 0, moved = 0;
+    for (std::size_t i = 0; i < p1.size(); ++i) {
+      const std::vector<float> w = p1[i].second.to_vector(), x = q1[i].second.to_vector(),
+                               y = q2[i].second.to_vector();
+      for (std::size_t e = 0; e < w.size(); ++e) {
+        const double expected = 0.5 * (static_cast<double>(x[e]) + static_cast<double>(w[e]));
+        worst = std::max(
+            worst, std::fabs(static_cast<double>(y[e]) - expected) / (1e-3 + std::fabs(expected)));
+        moved = std::max(moved, static_cast<double>(std::fabs(x[e] - w[e])));
+      }
+    }
+    EXPECT_LT(worst, 1e-5) << joint;
+    EXPECT_GT(moved, 1e-4) << joint << ": the average saved the trained weights";
+  }
+}
+
 }  // namespace
 }  // namespace ropes::crl::test_support

@@ -181,6 +181,11 @@ void describe_run(RunEvaluation& ev, const crl::RunDirectory& run,
     ev.extensions.push_back("ldr.members: each joint's LDR an ensemble of " + std::to_string(k) +
                             " classifiers, each trained on its own loss from its own start, the "
                             "logit and the score difference their means");
+  if (const double d = config.ldr_training.weight_average.decay; d > 0)
+    ev.extensions.push_back(
+        "ldr.weight_average: each LDR evaluated, early-stopped and saved as the "
+        "moving average of its weights over its steps (decay " +
+        fmt(d, 4) + "; regimes only, no angle)");
   if (const double w = config.ae2_training.logit_loss.weight; w > 0)
     ev.extensions.push_back(
         "ae2.logit_loss: each joint's AE2 latent also trained to follow its frozen LDR's logit "

@@ -110,6 +110,19 @@ struct LdrPairLoss {
   double weight = 0;  ///< 0: off
 };
 
+/// An extension of the LDRs' training, not the paper's method: an exponential moving average
+/// of each LDR's weights over its training steps, e <- d_t e + (1 - d_t) w after each step with
+/// d_t = min(decay, (1 + t) / (10 + t)) at step t = 0, 1, ... (the average forgets its start
+/// quickly). The held-out loss, early stopping and the saved classifier read the averaged
+/// weights; the steps go on from the trained ones. A classifier's accuracy needs only the
+/// logit's sign, but AE2 and the MCC read its value, which a constant-rate optimiser leaves
+/// noisy from step to step; the average keeps what the steps agree on, at almost no cost (an
+/// ensemble, ldr.members, averages independent runs instead). Regimes only, no angle. The
+/// config's optional ldr.weight_average {"decay"}, decay in (0, 1); off when absent.
+struct LdrWeightAverage {
+  double decay = 0;  ///< 0: off
+};
+
 /// Stage 2: one LDR per intervened joint, intervention 1 (label 0) against 2 (label 1),
 /// early stopping on the held-out anchors.
 struct LdrTraining {
@@ -119,6 +132,7 @@ struct LdrTraining {
   double held_out_fraction = 0.2;  ///< of the anchors, drawn by seed
   OptimizerConfig optimizer;
   LdrPairLoss pair_loss;
+  LdrWeightAverage weight_average;
 };
 
 /// Stage 3: AE2, reconstruction + lambda * sparsity.
