@@ -76,9 +76,9 @@ INSTANTIATE_TEST_SUITE_P(Heads, TrainerAe1PairHeads, ::testing::Values("ldr", "l
 
 // The extensions read regimes and anchors, never an angle: on a dataset whose angles column
 // is noise (the same images, regimes and anchors) a run with AE1's pair heads, occlusion
-// augmentation and difference loss, the LDRs' pair loss and AE2's logit term comes out byte
-// for byte the same in every weight file of every stage. And the extensions do change the
-// networks, so the comparison is not one of untouched ones.
+// augmentation and difference loss, the LDRs' pair loss and weight average and AE2's logit
+// term comes out byte for byte the same in every weight file of every stage. And the extensions do
+// change the networks, so the comparison is not one of untouched ones.
 TEST_F(TrainerAe1, TheExtensionsReadNoAngle) {
   const fs::path noise = dir_ / "noise";
   write_two_bar_dataset(noise, config_.cameras, config_.image_size, true, true);
