@@ -1327,13 +1327,14 @@ TEST_F(Pipeline, SmallPresetOneCameraReachesTheMeasuredMcc) {
     "panda_joint1", "panda_joint2", "panda_joint3", "panda_joint4", "panda_joint5", "panda_joint6"};
 
 struct SuitePin {
-  std::string suite;  ///< results.json's name of the suite
-  std::vector<double> floors, measured_v4;
+  std::string suite;                                     ///< results.json's name of the suite
+  std::vector<double> floors, measured_v4, measured_v3;  ///< a level not measured: empty
 };
 
 // A small-plus preset end to end (seed 0) against the MCC measured for it, suite by suite
-// (results.json's suite name, "id" or "id occlusion 32"): exactly on the build that measured
-// it (x86-64-v4, this compiler and Eigen), elsewhere at least the lowest of the seeds measured
+// (results.json's suite name, "id" or "id occlusion 32"): exactly on the builds that measured
+// it (this compiler and Eigen, the dispatch build at the level measured: x86-64-v4 or -v3,
+// which ROPES_ISA=v3 selects on a v4 CPU), elsewhere at least the lowest of the seeds measured
 // (docs/results/). The witness is the paper's Table 1 (and its occlusion row) beside it in
 // results.json, as for the preset above. A sanitizer build leaves these to the test above,
 // which runs the same code cut short.
@@ -1346,10 +1347,15 @@ struct SuitePin {
   ASSERT_EQ(r.rc, 0) << r.text.substr(r.text.size() > 4000 ? r.text.size() - 4000 : 0);
   const nlohmann::json results = json_of(out / "report" / "results.json");
   const ropes::nn::BuildInfo& build = ropes::nn::build_info();
-  const bool pinned = build.isa_build == "dispatch" && build.isa_level == "x86-64-v4" &&
-                      build.isa_baseline == "x86-64-v3" && build.compiler == "GNU 12.2.0" &&
-                      build.eigen == "3.4.0" && build.flags.rfind("Release:", 0) == 0;
+  const bool pinned_build = build.isa_build == "dispatch" && build.isa_baseline == "x86-64-v3" &&
+                            build.compiler == "GNU 12.2.0" && build.eigen == "3.4.0" &&
+                            build.flags.rfind("Release:", 0) == 0;
+  const std::string level = json_of(out / "run" / "run.json")["provenance"]["isa_level"];
   for (const SuitePin& pin : pins) {
+    const std::vector<double>& measured = level == "x86-64-v4"   ? pin.measured_v4
+                                          : level == "x86-64-v3" ? pin.measured_v3
+                                                                 : std::vector<double>{};
+    const bool pinned = pinned_build && !measured.empty();
     const nlohmann::json* found = nullptr;
     for (const nlohmann::json& s : results["suites"])
       if (s["name"] == pin.suite)
@@ -1363,23 +1369,27 @@ struct SuitePin {
                   pin.suite.c_str(), joints[k].c_str(), mcc, ropes["mcc_std"][k].get<double>(),
                   pin.floors[k], ropes["mse"][k].get<double>());
       if (pinned)
-        EXPECT_NEAR(mcc, pin.measured_v4[k], 1e-9)
-            << pin.suite << ", " << joints[k] << " (exact: " << build.isa_level << ")";
+        EXPECT_NEAR(mcc, measured[k], 1e-9)
+            << pin.suite << ", " << joints[k] << " (exact: " << level << ")";
       else
         EXPECT_GE(mcc, pin.floors[k])
-            << pin.suite << ", " << joints[k] << " (" << build.isa_level << ", not pinned)";
+            << pin.suite << ", " << joints[k] << " (" << level << ", not pinned)";
     }
   }
 }
 
-// 1C: 10,000 training anchors and their own id test set. About 11 minutes.
+// 1C: 10,000 training anchors and their own id test set. Since the LDRs' weight average,
+// pinned at x86-64-v3 only (seed 0: the AE1 of a seed-0 main job, which reads no LDR field,
+// the LDRs and AE2s trained on it under the preset; the floors the lowest of seeds 0, 1 and 2
+// there, docs/results/2026-12-07-ldr-weight-average.md); at x86-64-v4 the floors. About 11
+// minutes.
 TEST_F(Pipeline, SmallPresetPlusOneCameraReachesTheMeasuredMcc) {
 #if defined(ROPES_PIPELINE_SANITIZED)
   GTEST_SKIP() << "the cut-short small preset above covers this code under the sanitizers";
 #else
-  expect_small_plus_mcc("1c-small-plus", dir_ / "small_plus_1c",
-                        {"panda_joint2", "panda_joint4", "panda_joint6"}, "id",
-                        {{"id", {0.989, 0.971, 0.924}, {0.991946671, 0.971775231, 0.933865219}}});
+  expect_small_plus_mcc(
+      "1c-small-plus", dir_ / "small_plus_1c", {"panda_joint2", "panda_joint4", "panda_joint6"},
+      "id", {{"id", {0.993, 0.984, 0.956}, {}, {0.995809610, 0.984280742, 0.956543618}}});
 #endif
 }
 
@@ -1395,7 +1405,8 @@ TEST_F(Pipeline, SmallPresetPlusTwoCamerasReachesTheMeasuredMcc) {
       "2c-small-plus", dir_ / "small_plus_2c", kJoints2c, "id",
       {{"id",
         {0.902, 0.973, 0.705, 0.916, 0.459, 0.840},
-        {0.902328487, 0.982860544, 0.729986597, 0.916655765, 0.459625976, 0.840881001}}});
+        {0.902328487, 0.982860544, 0.729986597, 0.916655765, 0.459625976, 0.840881001},
+        {}}});
 #endif
 }
 
@@ -1411,9 +1422,11 @@ TEST_F(Pipeline, SmallPresetPlusOcclusionTwoCamerasReachesTheMeasuredMcc) {
       "2c-small-plus-occlusion", dir_ / "small_plus_occlusion_2c", kJoints2c, "id,occlusion",
       {{"id",
         {0.904, 0.971, 0.714, 0.912, 0.498, 0.838},
-        {0.905598573, 0.983352928, 0.739686089, 0.912349189, 0.509555538, 0.858724097}},
+        {0.905598573, 0.983352928, 0.739686089, 0.912349189, 0.509555538, 0.858724097},
+        {}},
        {"id occlusion 32",
         {0.666, 0.912, 0.386, 0.761, 0.335, 0.592},
-        {0.666470106, 0.924426624, 0.386526227, 0.761882814, 0.409510483, 0.644793649}}});
+        {0.666470106, 0.924426624, 0.386526227, 0.761882814, 0.409510483, 0.644793649},
+        {}}});
 #endif
 }
