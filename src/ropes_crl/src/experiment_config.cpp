@@ -50,18 +50,28 @@ std::string number_text(double v) {
   return s.str();
 }
 
-// An optional weighted term of a loss (ae1.difference_loss, ae1.pair_heads, ldr.pair_loss,
-// ae2.logit_loss): parent[key] must be an object (`shape` names its fields in the error) with no
-// key outside `keys` and a weight in (0, 1e6]. Returns the object; its weight goes to `weight`.
-const nlohmann::json& weighted_term(const nlohmann::json& parent, const std::string& parent_at,
-                                    const std::string& key, const std::string& shape,
-                                    const std::vector<std::string>& keys, double& weight) {
+// An optional option object (an extension's settings): parent[key] must be an object (`shape`
+// names its fields in the error) with no key outside `keys`. Returns the object.
+const nlohmann::json& optional_object(const nlohmann::json& parent, const std::string& parent_at,
+                                      const std::string& key, const std::string& shape,
+                                      const std::vector<std::string>& keys) {
   const std::string at = parent_at + "." + key;
   const nlohmann::json& o = field(parent, parent_at, key);
   if (!o.is_object())
     throw std::invalid_argument(at + ": expected an object " + shape + ", got a " +
                                 std::string(o.type_name()));
   reject_unknown_keys(o, at, keys);
+  return o;
+}
+
+// An optional weighted term of a loss (ae1.difference_loss, ae1.pair_heads, ldr.pair_loss,
+// ae2.logit_loss): an optional_object with a weight in (0, 1e6]. Returns the object; its weight
+// goes to `weight`.
+const nlohmann::json& weighted_term(const nlohmann::json& parent, const std::string& parent_at,
+                                    const std::string& key, const std::string& shape,
+                                    const std::vector<std::string>& keys, double& weight) {
+  const std::string at = parent_at + "." + key;
+  const nlohmann::json& o = optional_object(parent, parent_at, key, shape, keys);
   weight = get_double(o, at, "weight");
   if (!(weight > 0 && weight <= 1e6))
     throw std::invalid_argument(at + ".weight: expected in (0, 1e6], got " + number_text(weight));
@@ -249,11 +259,8 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
     }
     if (l.contains("weight_average")) {  // optional, an extension: off when absent
       const std::string at = "config.ldr.weight_average";
-      const nlohmann::json& o = field(l, "config.ldr", "weight_average");
-      if (!o.is_object())
-        throw std::invalid_argument(at + ": expected an object {\"decay\"}, got a " +
-                                    std::string(o.type_name()));
-      reject_unknown_keys(o, at, {"decay"});
+      const nlohmann::json& o =
+          optional_object(l, "config.ldr", "weight_average", "{\"decay\"}", {"decay"});
       const double decay = get_double(o, at, "decay");
       if (!(decay > 0 && decay < 1))
         throw std::invalid_argument(at + ".decay: expected in (0, 1), got " + number_text(decay));
