@@ -12,10 +12,6 @@
 
 namespace ropes::core::detail {
 
-[[noreturn]] void fail(const std::string& name, const std::string& what) {
-  throw FileFormatError(name + ": " + what);
-}
-
 std::string shard_stem(int shard) {
   char text[16];
   std::snprintf(text, sizeof(text), "%05d", shard);

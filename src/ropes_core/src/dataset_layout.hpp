@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "file_errors.hpp"
 #include "ropes_core/dataset.hpp"
 
 namespace ropes::core::detail {
@@ -22,9 +23,6 @@ inline constexpr std::uint64_t kMaxMarkerBytes = std::uint64_t{1} << 20;
 inline constexpr std::size_t kMaxColumnNameLength = 64;
 inline constexpr std::size_t kVerifyChunkBytes = std::size_t{1} << 20;
 inline constexpr std::int64_t kMaxInt64 = std::numeric_limits<std::int64_t>::max();
-
-// a FileFormatError "<name>: <what>"
-[[noreturn]] void fail(const std::string& name, const std::string& what);
 
 std::string shard_stem(int shard);
 

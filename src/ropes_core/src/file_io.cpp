@@ -10,17 +10,20 @@
 #include <cstdio>
 #include <cstring>
 
+#include "file_errors.hpp"
 #include "ropes_core/file_format_error.hpp"
 
 namespace ropes::core {
 
-namespace {
+namespace detail {
 
-[[noreturn]] void fail(const std::string& name, const std::string& what) {
+void fail(const std::string& name, const std::string& what) {
   throw FileFormatError(name + ": " + what);
 }
 
-}  // namespace
+}  // namespace detail
+
+using detail::fail;
 
 void write_file_atomically(const std::filesystem::path& path, const std::uint8_t* bytes,
                            std::size_t size) {

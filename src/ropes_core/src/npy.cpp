@@ -19,6 +19,8 @@
 #include <memory>
 #include <sstream>
 
+#include "file_errors.hpp"
+
 namespace ropes::core {
 
 namespace {
@@ -26,14 +28,8 @@ namespace {
 constexpr char kMagic[] = "\x93NUMPY";
 constexpr std::size_t kMagicSize = 6;
 
-[[noreturn]] void fail(const std::string& name, const std::string& what) {
-  throw FileFormatError(name + ": " + what);
-}
-
-struct FileCloser {
-  void operator()(std::FILE* f) const { std::fclose(f); }
-};
-using FilePtr = std::unique_ptr<std::FILE, FileCloser>;
+using detail::fail;
+using detail::FilePtr;
 
 // the header dictionary, e.g. {'descr': '<f4', 'fortran_order': False, 'shape': (3, 4), }
 class HeaderParser {

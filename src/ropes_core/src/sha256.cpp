@@ -8,6 +8,8 @@
 #include <stdexcept>
 #include <vector>
 
+#include "file_errors.hpp"
+
 namespace ropes::core {
 
 namespace {
@@ -59,10 +61,7 @@ inline std::uint32_t small_sigma1(std::uint32_t x) {
   return rotr(x, 17) ^ rotr(x, 19) ^ (x >> 10);
 }
 
-struct FileCloser {
-  void operator()(std::FILE* f) const { std::fclose(f); }
-};
-using FilePtr = std::unique_ptr<std::FILE, FileCloser>;
+using detail::FilePtr;
 
 }  // namespace
 

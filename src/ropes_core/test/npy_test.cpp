@@ -168,7 +168,7 @@ TEST(NpyGolden, NumpyLoadsWhatWeWrite) {
   fs::remove_all(dir);
 }
 
-std::string error_of(const std::vector<std::uint8_t>& bytes) {
+std::string npy_error_of(const std::vector<std::uint8_t>& bytes) {
   try {
     parse_npy(bytes.data(), bytes.size(), "x.npy");
   } catch (const FileFormatError& e) {
@@ -192,38 +192,42 @@ std::vector<std::uint8_t> with_header(const std::string& dict, std::size_t data_
 
 TEST(Npy, RefusesForeignAndUnsupportedFilesByName) {
   const std::string ok = "{'descr': '<f4', 'fortran_order': False, 'shape': (2,), }";
-  EXPECT_EQ(error_of(with_header(ok, 8)), "");
-  EXPECT_EQ(error_of(with_header(ok, 8, 2)), "");  // version 2.0 layout
-  EXPECT_NE(error_of({'P', 'K', 3, 4, 0, 0, 0, 0, 0, 0}).find("x.npy: not a .npy file"),
+  EXPECT_EQ(npy_error_of(with_header(ok, 8)), "");
+  EXPECT_EQ(npy_error_of(with_header(ok, 8, 2)), "");  // version 2.0 layout
+  EXPECT_NE(npy_error_of({'P', 'K', 3, 4, 0, 0, 0, 0, 0, 0}).find("x.npy: not a .npy file"),
             std::string::npos);
-  EXPECT_NE(error_of(with_header(ok, 8, 9)).find("version 9.0 is not supported"),
+  EXPECT_NE(npy_error_of(with_header(ok, 8, 9)).find("version 9.0 is not supported"),
             std::string::npos);
-  EXPECT_NE(error_of(with_header(ok, 7)).find("holds 7 data bytes; the header's f32 (2,) needs 8"),
-            std::string::npos);
-  EXPECT_NE(error_of(with_header(ok, 9)).find("holds 9 data bytes"), std::string::npos);
-  EXPECT_NE(error_of(with_header("{'descr': '>f4', 'fortran_order': False, 'shape': (2,), }", 8))
-                .find("dtype '>f4' is not supported"),
-            std::string::npos);
-  EXPECT_NE(error_of(with_header("{'descr': '<c8', 'fortran_order': False, 'shape': (2,), }", 16))
-                .find("dtype '<c8'"),
-            std::string::npos);
-  EXPECT_NE(error_of(with_header("{'descr': '<f4', 'fortran_order': True, 'shape': (2,), }", 8))
+  EXPECT_NE(
+      npy_error_of(with_header(ok, 7)).find("holds 7 data bytes; the header's f32 (2,) needs 8"),
+      std::string::npos);
+  EXPECT_NE(npy_error_of(with_header(ok, 9)).find("holds 9 data bytes"), std::string::npos);
+  EXPECT_NE(
+      npy_error_of(with_header("{'descr': '>f4', 'fortran_order': False, 'shape': (2,), }", 8))
+          .find("dtype '>f4' is not supported"),
+      std::string::npos);
+  EXPECT_NE(
+      npy_error_of(with_header("{'descr': '<c8', 'fortran_order': False, 'shape': (2,), }", 16))
+          .find("dtype '<c8'"),
+      std::string::npos);
+  EXPECT_NE(npy_error_of(with_header("{'descr': '<f4', 'fortran_order': True, 'shape': (2,), }", 8))
                 .find("fortran_order is True"),
             std::string::npos);
-  EXPECT_NE(error_of(with_header("{'descr': '<f4', 'fortran_order': False, 'shape': (-2,), }", 8))
-                .find("expected non-negative integers"),
-            std::string::npos);
-  EXPECT_NE(error_of(with_header("{'descr': '<f4', 'shape': (2,), }", 8)).find("lacks one of"),
+  EXPECT_NE(
+      npy_error_of(with_header("{'descr': '<f4', 'fortran_order': False, 'shape': (-2,), }", 8))
+          .find("expected non-negative integers"),
+      std::string::npos);
+  EXPECT_NE(npy_error_of(with_header("{'descr': '<f4', 'shape': (2,), }", 8)).find("lacks one of"),
             std::string::npos);
   // a shape whose byte count cannot be represented must not reach an allocation
-  EXPECT_NE(error_of(with_header("{'descr': '<f8', 'fortran_order': False, "
-                                 "'shape': (4294967296, 4294967296, 16), }",
-                                 0))
+  EXPECT_NE(npy_error_of(with_header("{'descr': '<f8', 'fortran_order': False, "
+                                     "'shape': (4294967296, 4294967296, 16), }",
+                                     0))
                 .find("overflows 64 bits"),
             std::string::npos);
   // a header length beyond the limit
   std::vector<std::uint8_t> huge = {0x93, 'N', 'U', 'M', 'P', 'Y', 2, 0, 0, 0, 0, 0x10};
-  EXPECT_NE(error_of(huge).find("claims 268435456 bytes"), std::string::npos);
+  EXPECT_NE(npy_error_of(huge).find("claims 268435456 bytes"), std::string::npos);
 }
 
 TEST(Npy, ReadNpyNamesAMissingFile) {

@@ -15,7 +15,7 @@ using test_support::expect_message;
 
 // Data and expected values from test/witness_pca.py (numpy 1.24: linalg.svd of the centred
 // samples, each component's largest-magnitude entry made positive).
-Eigen::MatrixXd witness_x() {
+Eigen::MatrixXd witness_samples() {
   Eigen::MatrixXd x(30, 4);
   x << 3.131716, 1.876111, 3.849773, 0.762982, 1.081013, -0.600823, 2.109401, 3.611820, -1.125477,
       -5.224442, -1.431325, 5.945705, -0.507289, -3.875455, 0.148706, 6.103065, 2.675296, 1.213252,
@@ -35,7 +35,7 @@ Eigen::MatrixXd witness_x() {
 }
 
 TEST(PcaGolden, ComponentsVariancesAndScoresMatchNumpy) {
-  const Eigen::MatrixXd x = witness_x();
+  const Eigen::MatrixXd x = witness_samples();
   const Pca p = fit_pca(x, 2);
   ASSERT_EQ(p.components.rows(), 4);
   ASSERT_EQ(p.components.cols(), 2);
@@ -57,7 +57,7 @@ TEST(PcaGolden, ComponentsVariancesAndScoresMatchNumpy) {
 }
 
 TEST(Pca, RefusesWhatItCannotFit) {
-  const Eigen::MatrixXd x = witness_x();
+  const Eigen::MatrixXd x = witness_samples();
   expect_message([&] { fit_pca(x, 5); }, "5 components of 30 samples of 4 values");
   expect_message([&] { fit_pca(x.topRows(1), 1); }, "at least 2 samples");
   Eigen::MatrixXd bad = x;

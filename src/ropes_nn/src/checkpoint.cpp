@@ -25,7 +25,7 @@ constexpr const char* kFirstMoment = "optimizer.exp_avg.";
 constexpr const char* kSecondMoment = "optimizer.exp_avg_sq.";
 constexpr const char* kStepCount = "optimizer.step.";
 
-[[noreturn]] void fail(const std::string& name, const std::string& what) {
+[[noreturn]] void checkpoint_fail(const std::string& name, const std::string& what) {
   throw core::FileFormatError(name + ": " + what);
 }
 
@@ -66,11 +66,12 @@ const core::NpyArray& expect_tensor(const Safetensors& file, const std::string& 
                                     const std::string& owner) {
   const core::NpyArray* a = file.find(key);
   if (!a)
-    fail(name, "has no tensor '" + key + "' for " + owner);
+    checkpoint_fail(name, "has no tensor '" + key + "' for " + owner);
   if (a->dtype != dtype || a->shape != shape) {
-    fail(name, "tensor '" + key + "' is " + core::dtype_name(a->dtype) + " " +
-                   shape_text(a->shape) + "; " + owner + " is " + core::dtype_name(dtype) + " " +
-                   shape_text(shape) + " (a file of another architecture?)");
+    checkpoint_fail(name, "tensor '" + key + "' is " + core::dtype_name(a->dtype) + " " +
+                              shape_text(a->shape) + "; " + owner + " is " +
+                              core::dtype_name(dtype) + " " + shape_text(shape) +
+                              " (a file of another architecture?)");
   }
   return *a;
 }
@@ -103,8 +104,8 @@ WeightPlan plan_weights(const Module& module, const Safetensors& file, const std
     const std::string key = options.prefix + pname;
     if (!file.find(key)) {
       if (options.strict) {
-        fail(name, "has no tensor '" + key + "' for parameter '" + pname + "'" +
-                       (options.prefix.empty() ? prefix_hint(file, pname) : ""));
+        checkpoint_fail(name, "has no tensor '" + key + "' for parameter '" + pname + "'" +
+                                  (options.prefix.empty() ? prefix_hint(file, pname) : ""));
       }
       plan.missing.push_back(pname);
       continue;
@@ -117,8 +118,9 @@ WeightPlan plan_weights(const Module& module, const Safetensors& file, const std
     if (!starts_with(key, options.prefix) || known.count(key.substr(options.prefix.size())))
       continue;
     if (options.strict) {
-      fail(name, "holds tensor '" + key + "', which the module does not have (no parameter '" +
-                     key.substr(options.prefix.size()) + "')");
+      checkpoint_fail(name, "holds tensor '" + key +
+                                "', which the module does not have (no parameter '" +
+                                key.substr(options.prefix.size()) + "')");
     }
     plan.unexpected.push_back(key.substr(options.prefix.size()));
   }
@@ -139,7 +141,7 @@ const Json& field(const Json& object, const char* key, const std::string& name,
                   const std::string& where) {
   const auto it = object.find(key);
   if (it == object.end())
-    fail(name, where + " has no field '" + key + "'");
+    checkpoint_fail(name, where + " has no field '" + key + "'");
   return *it;
 }
 
@@ -148,7 +150,7 @@ std::int64_t count_field(const Json& object, const char* key, const std::string&
   const Json& v = field(object, key, name, where);
   if (!v.is_number_integer() || v.get<std::int64_t>() < 0 ||
       (v.is_number_unsigned() && v.get<std::uint64_t>() > INT64_MAX)) {
-    fail(name, where + "." + key + " is " + describe(v) + "; expected an integer >= 0");
+    checkpoint_fail(name, where + "." + key + " is " + describe(v) + "; expected an integer >= 0");
   }
   return v.get<std::int64_t>();
 }
@@ -157,7 +159,7 @@ double number_field(const Json& object, const char* key, const std::string& name
                     const std::string& where) {
   const Json& v = field(object, key, name, where);
   if (!v.is_number() || !std::isfinite(v.get<double>()))
-    fail(name, where + "." + key + " is " + describe(v) + "; expected a finite number");
+    checkpoint_fail(name, where + "." + key + " is " + describe(v) + "; expected a finite number");
   return v.get<double>();
 }
 
@@ -237,37 +239,40 @@ LoadedCheckpoint load_checkpoint(const fs::path& path, Module& module, Adam& ada
   // the training state in the metadata
   const auto meta = file.metadata.find(kCheckpointMetadataKey);
   if (meta == file.metadata.end()) {
-    fail(name, std::string("is not a training checkpoint (no \"") + kCheckpointMetadataKey +
-                   "\" metadata); a weights file loads with load_module");
+    checkpoint_fail(name, std::string("is not a training checkpoint (no \"") +
+                              kCheckpointMetadataKey +
+                              "\" metadata); a weights file loads with load_module");
   }
   const std::string where = std::string("metadata[\"") + kCheckpointMetadataKey + "\"]";
   Json state;
   const std::string problem = core::parse_json(meta->second, &state);
   if (!problem.empty())
-    fail(name, where + " " + problem);
+    checkpoint_fail(name, where + " " + problem);
   if (!state.is_object())
-    fail(name, where + " is " + describe(state) + "; expected a JSON object");
+    checkpoint_fail(name, where + " is " + describe(state) + "; expected a JSON object");
   const Json& format = field(state, "format", name, where);
   if (format != kCheckpointFormat) {
-    fail(name,
-         where + ".format is " + describe(format) + "; expected \"" + kCheckpointFormat + "\"");
+    checkpoint_fail(name, where + ".format is " + describe(format) + "; expected \"" +
+                              kCheckpointFormat + "\"");
   }
   const Json& version = field(state, "format_version", name, where);
   if (version != kCheckpointFormatVersion && version != 1) {
-    fail(name, where + ".format_version is " + describe(version) + "; expected 1 or " +
-                   std::to_string(kCheckpointFormatVersion) + " (the versions this reader knows)");
+    checkpoint_fail(name, where + ".format_version is " + describe(version) + "; expected 1 or " +
+                              std::to_string(kCheckpointFormatVersion) +
+                              " (the versions this reader knows)");
   }
   if (version != 1 && !is_sealed(file)) {
-    fail(name, std::string("has no seal (metadata '") + kSafetensorsSealKey +
-                   "'), which every checkpoint of format_version " + version.dump() + " has");
+    checkpoint_fail(name, std::string("has no seal (metadata '") + kSafetensorsSealKey +
+                              "'), which every checkpoint of format_version " + version.dump() +
+                              " has");
   }
   const std::int64_t step = count_field(state, "step", name, where);
   const double lr = number_field(state, "lr", name, where);
   if (lr < 0)
-    fail(name, where + ".lr is " + describe(state["lr"]) + "; expected a rate >= 0");
+    checkpoint_fail(name, where + ".lr is " + describe(state["lr"]) + "; expected a rate >= 0");
   const Json& adam_json = field(state, "adam", name, where);
   if (!adam_json.is_object())
-    fail(name, where + ".adam is " + describe(adam_json) + "; expected an object");
+    checkpoint_fail(name, where + ".adam is " + describe(adam_json) + "; expected an object");
   AdamOptions options = adam.options();
   options.lr = 1.0;  // checked apart: the saved rate may be 0 at the end of a schedule
   options.beta1 = number_field(adam_json, "beta1", name, where + ".adam");
@@ -275,20 +280,21 @@ LoadedCheckpoint load_checkpoint(const fs::path& path, Module& module, Adam& ada
   options.eps = number_field(adam_json, "eps", name, where + ".adam");
   options.weight_decay = number_field(adam_json, "weight_decay", name, where + ".adam");
   if (!options.problem().empty())
-    fail(name, where + ".adam: " + options.problem());
+    checkpoint_fail(name, where + ".adam: " + options.problem());
   const Json& schedule_json = field(state, "schedule", name, where);
   if (!schedule_json.is_object())
-    fail(name, where + ".schedule is " + describe(schedule_json) + "; expected an object");
+    checkpoint_fail(name,
+                    where + ".schedule is " + describe(schedule_json) + "; expected an object");
   LrSchedule schedule = LrSchedule::constant(1.0);
   try {
     schedule = LrSchedule::from_json(schedule_json.dump(), where + ".schedule");
   } catch (const std::invalid_argument& e) {
-    fail(name, e.what());
+    checkpoint_fail(name, e.what());
   }
   TrainingProgress progress;
   const Json& seed = field(state, "seed", name, where);
   if (!seed.is_number_unsigned())
-    fail(name, where + ".seed is " + describe(seed) + "; expected an integer >= 0");
+    checkpoint_fail(name, where + ".seed is " + describe(seed) + "; expected an integer >= 0");
   progress.seed = seed.get<std::uint64_t>();
   progress.epoch = count_field(state, "epoch", name, where);
   progress.position = count_field(state, "position", name, where);
@@ -311,8 +317,9 @@ LoadedCheckpoint load_checkpoint(const fs::path& path, Module& module, Adam& ada
     std::int64_t count = 0;
     std::memcpy(&count, t.data.data(), sizeof(count));
     if (count < 0 || count > step) {
-      fail(name, "tensor '" + std::string(kStepCount) + pname + "' is " + std::to_string(count) +
-                     "; expected 0.." + std::to_string(step) + " (the checkpoint's step)");
+      checkpoint_fail(name, "tensor '" + std::string(kStepCount) + pname + "' is " +
+                                std::to_string(count) + "; expected 0.." + std::to_string(step) +
+                                " (the checkpoint's step)");
     }
     counts.push_back(count);
     for (const char* prefix : {kFirstMoment, kSecondMoment, kStepCount})
@@ -322,11 +329,12 @@ LoadedCheckpoint load_checkpoint(const fs::path& path, Module& module, Adam& ada
     if (starts_with(key, kModelPrefix) || expected.count(key))
       continue;
     if (starts_with(key, kOptimizerPrefix)) {
-      fail(name, "holds optimiser state '" + key +
-                     "' for a parameter the optimiser does not have (a checkpoint of another "
-                     "architecture?)");
+      checkpoint_fail(name,
+                      "holds optimiser state '" + key +
+                          "' for a parameter the optimiser does not have (a checkpoint of another "
+                          "architecture?)");
     }
-    fail(name, "holds tensor '" + key + "', which is neither model.* nor optimizer.*");
+    checkpoint_fail(name, "holds tensor '" + key + "', which is neither model.* nor optimizer.*");
   }
 
   // every check passed: write

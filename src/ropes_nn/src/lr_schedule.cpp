@@ -49,7 +49,7 @@ const Json& field_of(const Json& j, const char* name, const std::string& where) 
   return *it;
 }
 
-double number_field(const Json& j, const char* name, const std::string& where) {
+double schedule_number(const Json& j, const char* name, const std::string& where) {
   const Json& v = field_of(j, name, where);
   if (!v.is_number()) {
     throw std::invalid_argument(where + "." + name + " is a JSON " + v.type_name() +
@@ -58,7 +58,7 @@ double number_field(const Json& j, const char* name, const std::string& where) {
   return v.get<double>();
 }
 
-std::int64_t count_field(const Json& j, const char* name, const std::string& where) {
+std::int64_t schedule_count(const Json& j, const char* name, const std::string& where) {
   const Json& v = field_of(j, name, where);
   if (!v.is_number_integer()) {
     throw std::invalid_argument(where + "." + name + " is " + core::describe(v) +
@@ -211,23 +211,23 @@ LrSchedule LrSchedule::from_json(const std::string& text, const std::string& whe
   try {
     // fields read in a fixed order, so the first one missing is the one named
     if (name == "constant")
-      return constant(number_field(j, "lr", where));
+      return constant(schedule_number(j, "lr", where));
     if (name == "linear_warmup") {
-      const double lr = number_field(j, "lr", where);
-      return linear_warmup(lr, count_field(j, "warmup_steps", where));
+      const double lr = schedule_number(j, "lr", where);
+      return linear_warmup(lr, schedule_count(j, "warmup_steps", where));
     }
     if (name == "cosine") {
-      const double lr = number_field(j, "lr", where);
-      const std::int64_t total = count_field(j, "total_steps", where);
-      const double final_lr = number_field(j, "final_lr", where);
-      return cosine(lr, total, final_lr, count_field(j, "warmup_steps", where));
+      const double lr = schedule_number(j, "lr", where);
+      const std::int64_t total = schedule_count(j, "total_steps", where);
+      const double final_lr = schedule_number(j, "final_lr", where);
+      return cosine(lr, total, final_lr, schedule_count(j, "warmup_steps", where));
     }
     if (name == "one_cycle") {
-      const double lr = number_field(j, "lr", where);
-      const std::int64_t total = count_field(j, "total_steps", where);
-      const double pct = number_field(j, "pct_start", where);
-      const double div = number_field(j, "div_factor", where);
-      return one_cycle(lr, total, pct, div, number_field(j, "final_div_factor", where));
+      const double lr = schedule_number(j, "lr", where);
+      const std::int64_t total = schedule_count(j, "total_steps", where);
+      const double pct = schedule_number(j, "pct_start", where);
+      const double div = schedule_number(j, "div_factor", where);
+      return one_cycle(lr, total, pct, div, schedule_number(j, "final_div_factor", where));
     }
   } catch (const std::invalid_argument& e) {
     const std::string message = e.what();

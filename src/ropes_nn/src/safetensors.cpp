@@ -19,7 +19,7 @@ namespace {
 
 using Json = nlohmann::json;
 
-[[noreturn]] void fail(const std::string& name, const std::string& what) {
+[[noreturn]] void safetensors_fail(const std::string& name, const std::string& what) {
   throw core::FileFormatError(name + ": " + what);
 }
 
@@ -79,13 +79,14 @@ void check_seal(const std::uint8_t* bytes, std::size_t size, std::size_t header_
                 const std::string& recorded, const std::string& name) {
   const std::string where = std::string("__metadata__['") + kSafetensorsSealKey + "']";
   if (!is_hex_digest(recorded)) {
-    fail(name, where + " is " + core::describe(Json(recorded)) +
-                   "; expected 64 lower-case hexadecimal digits");
+    safetensors_fail(name, where + " is " + core::describe(Json(recorded)) +
+                               "; expected 64 lower-case hexadecimal digits");
   }
   const std::size_t at = seal_digits_at(bytes, header_end, recorded);
   if (at == std::string::npos) {
-    fail(name, where + " is not written as \"" + kSafetensorsSealKey +
-                   "\":\"<digits>\" exactly once in the header; the seal cannot be checked");
+    safetensors_fail(name,
+                     where + " is not written as \"" + kSafetensorsSealKey +
+                         "\":\"<digits>\" exactly once in the header; the seal cannot be checked");
   }
   core::Sha256 hash;
   hash.update(bytes, at);
@@ -94,8 +95,8 @@ void check_seal(const std::uint8_t* bytes, std::size_t size, std::size_t header_
   hash.update(bytes + at + 64, size - at - 64);
   const std::string actual = core::sha256_hex(hash.finish());
   if (actual != recorded) {
-    fail(name, "sha256 is " + actual + "; its seal records " + recorded +
-                   " (the file changed after it was written)");
+    safetensors_fail(name, "sha256 is " + actual + "; its seal records " + recorded +
+                               " (the file changed after it was written)");
   }
 }
 
@@ -165,18 +166,18 @@ bool is_sealed(const Safetensors& file) {
 Safetensors parse_safetensors(const std::uint8_t* bytes, std::size_t size,
                               const std::string& name) {
   if (size < 8)
-    fail(name, "shorter than the 8-byte header length of a .safetensors file");
+    safetensors_fail(name, "shorter than the 8-byte header length of a .safetensors file");
   std::uint64_t header_length = 0;
   for (int i = 0; i < 8; ++i)
     header_length |= static_cast<std::uint64_t>(bytes[i]) << (8 * i);
   if (header_length > kSafetensorsMaxHeaderBytes) {
-    fail(name, "header length " + std::to_string(header_length) + " exceeds the limit of " +
-                   std::to_string(kSafetensorsMaxHeaderBytes) +
-                   " bytes (not a .safetensors file?)");
+    safetensors_fail(
+        name, "header length " + std::to_string(header_length) + " exceeds the limit of " +
+                  std::to_string(kSafetensorsMaxHeaderBytes) + " bytes (not a .safetensors file?)");
   }
   if (header_length > size - 8) {
-    fail(name, "header length " + std::to_string(header_length) + " runs past the end of the " +
-                   std::to_string(size) + "-byte file");
+    safetensors_fail(name, "header length " + std::to_string(header_length) +
+                               " runs past the end of the " + std::to_string(size) + "-byte file");
   }
   const std::uint64_t data_size = size - 8 - header_length;
 
@@ -184,9 +185,9 @@ Safetensors parse_safetensors(const std::uint8_t* bytes, std::size_t size,
   const std::string problem = core::parse_json(
       std::string(reinterpret_cast<const char*>(bytes) + 8, header_length), &header);
   if (!problem.empty())
-    fail(name, "the header " + problem);
+    safetensors_fail(name, "the header " + problem);
   if (!header.is_object())
-    fail(name, "the header is not a JSON object");
+    safetensors_fail(name, "the header is not a JSON object");
 
   Safetensors file;
   // entries, checked, then sorted by offset to prove they tile the data exactly
@@ -199,10 +200,10 @@ Safetensors parse_safetensors(const std::uint8_t* bytes, std::size_t size,
   for (const auto& [key, value] : header.items()) {
     if (key == "__metadata__") {
       if (!value.is_object())
-        fail(name, "__metadata__ is not an object of strings");
+        safetensors_fail(name, "__metadata__ is not an object of strings");
       for (const auto& [mk, mv] : value.items()) {
         if (!mv.is_string())
-          fail(name, "__metadata__['" + mk + "'] is not a string");
+          safetensors_fail(name, "__metadata__['" + mk + "'] is not a string");
         file.metadata[mk] = mv.get<std::string>();
       }
       continue;
@@ -210,40 +211,41 @@ Safetensors parse_safetensors(const std::uint8_t* bytes, std::size_t size,
     const std::string where = "tensor '" + key + "'";
     if (!value.is_object() || !value.contains("dtype") || !value.contains("shape") ||
         !value.contains("data_offsets")) {
-      fail(name, where + " lacks dtype, shape or data_offsets");
+      safetensors_fail(name, where + " lacks dtype, shape or data_offsets");
     }
     Entry e{key, {}, 0, 0};
     const Json& dtype = value["dtype"];
     if (!dtype.is_string() || !parse_dtype(dtype.get<std::string>(), &e.array.dtype)) {
-      fail(name,
-           where + " has dtype " + core::describe(dtype) + "; expected U8, I32, I64, F32 or F64");
+      safetensors_fail(name, where + " has dtype " + core::describe(dtype) +
+                                 "; expected U8, I32, I64, F32 or F64");
     }
     const Json& shape = value["shape"];
     if (!shape.is_array() || shape.size() > static_cast<std::size_t>(core::kNpyMaxRank)) {
-      fail(name, where + " has shape " + core::describe_sizes(shape) +
-                     "; expected a list of at most " + std::to_string(core::kNpyMaxRank) +
-                     " sizes");
+      safetensors_fail(name, where + " has shape " + core::describe_sizes(shape) +
+                                 "; expected a list of at most " +
+                                 std::to_string(core::kNpyMaxRank) + " sizes");
     }
     for (const Json& d : shape) {
       if (!d.is_number_unsigned())
-        fail(name, where + " has shape " + core::describe_sizes(shape));
+        safetensors_fail(name, where + " has shape " + core::describe_sizes(shape));
       e.array.shape.push_back(
           static_cast<std::int64_t>(std::min<std::uint64_t>(d.get<std::uint64_t>(), INT64_MAX)));
     }
     const Json& offsets = value["data_offsets"];
     if (!offsets.is_array() || offsets.size() != 2 || !offsets[0].is_number_unsigned() ||
         !offsets[1].is_number_unsigned()) {
-      fail(name, where + " has data_offsets " + core::describe_sizes(offsets) +
-                     "; expected [begin, end]");
+      safetensors_fail(name, where + " has data_offsets " + core::describe_sizes(offsets) +
+                                 "; expected [begin, end]");
     }
     e.begin = offsets[0].get<std::uint64_t>();
     e.end = offsets[1].get<std::uint64_t>();
     std::uint64_t nbytes = 0;
     if (!core::checked_byte_count(e.array.dtype, e.array.shape, &nbytes) || e.end < e.begin ||
         e.end - e.begin != nbytes) {
-      fail(name, where + " has data_offsets " + core::describe_sizes(offsets) + " for a " +
-                     dtype_code(e.array.dtype) + " " + core::describe_sizes(shape) + " tensor of " +
-                     std::to_string(nbytes) + " bytes");
+      safetensors_fail(name, where + " has data_offsets " + core::describe_sizes(offsets) +
+                                 " for a " + dtype_code(e.array.dtype) + " " +
+                                 core::describe_sizes(shape) + " tensor of " +
+                                 std::to_string(nbytes) + " bytes");
     }
     entries.push_back(std::move(e));
   }
@@ -252,14 +254,16 @@ Safetensors parse_safetensors(const std::uint8_t* bytes, std::size_t size,
   std::uint64_t expected = 0;
   for (const Entry& e : entries) {
     if (e.begin != expected) {
-      fail(name, "tensor '" + e.key + "' starts at byte " + std::to_string(e.begin) +
-                     "; expected " + std::to_string(expected) + " (offsets must tile the data)");
+      safetensors_fail(name, "tensor '" + e.key + "' starts at byte " + std::to_string(e.begin) +
+                                 "; expected " + std::to_string(expected) +
+                                 " (offsets must tile the data)");
     }
     expected = e.end;
   }
   if (expected != data_size) {
-    fail(name, "the tensors cover " + std::to_string(expected) + " bytes but the file holds " +
-                   std::to_string(data_size) + " data bytes");
+    safetensors_fail(name, "the tensors cover " + std::to_string(expected) +
+                               " bytes but the file holds " + std::to_string(data_size) +
+                               " data bytes");
   }
   const auto seal = file.metadata.find(kSafetensorsSealKey);
   if (seal != file.metadata.end())
@@ -276,7 +280,7 @@ Safetensors read_safetensors(const std::filesystem::path& path) {
   const std::string name = path.string();
   std::ifstream in(path, std::ios::binary);
   if (!in)
-    fail(name, "cannot open");
+    safetensors_fail(name, "cannot open");
   const std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)),
                                         std::istreambuf_iterator<char>());
   return parse_safetensors(bytes.data(), bytes.size(), name);

@@ -17,7 +17,7 @@ namespace {
 // a machine with a 32 KiB L1 and a 256 KiB L2 (an older x86-64 core), as Eigen would query it
 constexpr CacheSizes kOtherCpu{32768, 262144, 8388608};
 
-std::vector<float> normals(std::size_t n, std::uint64_t seed) {
+std::vector<float> gemm_normals(std::size_t n, std::uint64_t seed) {
   core::PhiloxStream rng(seed, 0);
   std::vector<float> v(n);
   for (float& x : v)
@@ -67,9 +67,9 @@ TEST(Gemm, ReferenceBlockingIsEigensHeuristicAtFixedCacheSizes) {
 TEST(Gemm, TransposedAndAccumulatedProductsAreTheProduct) {
   const int saved = num_threads();
   for (const Shape3& s : kShapes) {
-    const std::vector<float> a = normals(static_cast<std::size_t>(s.m * s.k), 1);
-    const std::vector<float> b = normals(static_cast<std::size_t>(s.k * s.n), 2);
-    const std::vector<float> c0 = normals(static_cast<std::size_t>(s.m * s.n), 3);
+    const std::vector<float> a = gemm_normals(static_cast<std::size_t>(s.m * s.k), 1);
+    const std::vector<float> b = gemm_normals(static_cast<std::size_t>(s.k * s.n), 2);
+    const std::vector<float> c0 = gemm_normals(static_cast<std::size_t>(s.m * s.n), 3);
     // the transposed copies, stored [k, m] and [n, k]
     std::vector<float> at(a.size()), bt(b.size());
     for (std::int64_t i = 0; i < s.m; ++i)
@@ -110,9 +110,9 @@ TEST(Gemm, TransposedAndAccumulatedProductsAreTheProduct) {
 // every transpose combination, with and without accumulation, at `threads`
 std::vector<float> products_at(const Shape3& s, int threads) {
   set_num_threads(threads);
-  const std::vector<float> a = normals(static_cast<std::size_t>(s.m * s.k), 4);
-  const std::vector<float> b = normals(static_cast<std::size_t>(s.k * s.n), 5);
-  const std::vector<float> c0 = normals(static_cast<std::size_t>(s.m * s.n), 6);
+  const std::vector<float> a = gemm_normals(static_cast<std::size_t>(s.m * s.k), 4);
+  const std::vector<float> b = gemm_normals(static_cast<std::size_t>(s.k * s.n), 5);
+  const std::vector<float> c0 = gemm_normals(static_cast<std::size_t>(s.m * s.n), 6);
   std::vector<float> all;
   for (int combination = 0; combination < 4; ++combination) {
     for (bool accumulate : {false, true}) {

@@ -21,7 +21,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-fs::path scratch(const std::string& leaf) {
+fs::path scratch_dir(const std::string& leaf) {
   const fs::path dir = fs::temp_directory_path() / ("ropes_st_" + std::to_string(::getpid()));
   fs::create_directories(dir);
   return dir / leaf;
@@ -33,7 +33,7 @@ std::vector<std::uint8_t> file_bytes(const fs::path& path) {
 }
 
 // a small CNN with named parameters: "0.weight", "1.block.norm1.scale", ...
-std::shared_ptr<Sequential> small_net(std::uint64_t seed) {
+std::shared_ptr<Sequential> seeded_net(std::uint64_t seed) {
   auto net = std::make_shared<Sequential>();
   net->add(std::make_shared<Conv2d>(1, 4, 3, 2));
   auto inner = std::make_shared<Sequential>();
@@ -45,10 +45,10 @@ std::shared_ptr<Sequential> small_net(std::uint64_t seed) {
 }
 
 TEST(Safetensors, ModuleRoundTripIsBitIdentical) {
-  const auto saved = small_net(1);
-  const fs::path path = scratch("net.safetensors");
+  const auto saved = seeded_net(1);
+  const fs::path path = scratch_dir("net.safetensors");
   save_module(*saved, path, {{"arch", "small_net"}, {"seed", "1"}});
-  const auto loaded = small_net(2);  // other values, same names and shapes
+  const auto loaded = seeded_net(2);  // other values, same names and shapes
   const auto metadata = load_module(*loaded, path).metadata;
   EXPECT_EQ(metadata.at("arch"), "small_net");
   const auto a = saved->named_parameters();
@@ -73,8 +73,8 @@ TEST(SafetensorsGolden, APythonReaderOfThePublishedFormatReadsWhatWeWrite) {
   if (ropes::core::run_shell("/usr/bin/python3 -c 'import numpy' 2>/dev/null").rc != 0) {
     GTEST_SKIP() << "Debian's python3-numpy is not installed";
   }
-  const auto net = small_net(3);
-  const fs::path path = scratch("py.safetensors");
+  const auto net = seeded_net(3);
+  const fs::path path = scratch_dir("py.safetensors");
   save_module(*net, path, {{"note", "written by ropes_nn"}});
   // what the reader should print, computed here
   std::ostringstream expected;
@@ -95,7 +95,7 @@ TEST(SafetensorsGolden, APythonReaderOfThePublishedFormatReadsWhatWeWrite) {
       expected << (d ? ", " : "") << t.shape()[d];
     expected << "] " << sum << "\n";
   }
-  const fs::path listing = scratch("listing.txt");
+  const fs::path listing = scratch_dir("listing.txt");
   const std::string command = "/usr/bin/python3 " + std::string(ROPES_NN_TOOLS) +
                               "/safetensors_io.py summary '" + path.string() + "' > '" +
                               listing.string() + "'";
@@ -107,7 +107,7 @@ TEST(SafetensorsGolden, APythonReaderOfThePublishedFormatReadsWhatWeWrite) {
 
   // the values themselves: the reader saves each tensor with numpy.save (through
   // torch.from_numpy when python3-torch is there) and core::read_npy compares every bit
-  const fs::path exported = scratch("exported");
+  const fs::path exported = scratch_dir("exported");
   fs::create_directories(exported);
   const std::string export_command = "/usr/bin/python3 " + std::string(ROPES_NN_TOOLS) +
                                      "/safetensors_io.py export '" + path.string() + "' '" +
@@ -181,8 +181,8 @@ TEST(Safetensors, RefusesMalformedFilesNamingTheProblem) {
 }
 
 TEST(Safetensors, LoadModuleRefusesAMismatchAndChangesNothing) {
-  const auto a = small_net(4);
-  const fs::path path = scratch("a.safetensors");
+  const auto a = seeded_net(4);
+  const fs::path path = scratch_dir("a.safetensors");
   save_module(*a, path);
   // a module with another layout: one shape differs
   Sequential other;
@@ -204,8 +204,8 @@ TEST(Safetensors, LoadModuleRefusesAMismatchAndChangesNothing) {
 
 // Fuzz: truncations and random corruptions parse or give core::FileFormatError, nothing else.
 TEST(Safetensors, TruncatedAndCorruptedFilesGiveFileFormatErrorsOnly) {
-  const auto net = small_net(5);
-  const fs::path path = scratch("f.safetensors");
+  const auto net = seeded_net(5);
+  const fs::path path = scratch_dir("f.safetensors");
   save_module(*net, path, {{"k", "v"}});
   const std::vector<std::uint8_t> good = file_bytes(path);
   for (std::size_t n = 0; n < good.size(); n += 7) {
@@ -234,8 +234,8 @@ TEST(Safetensors, TruncatedAndCorruptedFilesGiveFileFormatErrorsOnly) {
 // or data, is refused, but for the seal's own key (an intact unsealed file then); the seal's
 // entry cannot be set by hand.
 TEST(Safetensors, ASealedFileIsRefusedWhenAnyByteChanged) {
-  const auto net = small_net(9);
-  const fs::path path = scratch("sealed.safetensors");
+  const auto net = seeded_net(9);
+  const fs::path path = scratch_dir("sealed.safetensors");
   save_module(*net, path, {{"k", "v"}});
   const std::vector<std::uint8_t> good = file_bytes(path);
   const Safetensors parsed = parse_safetensors(good.data(), good.size(), "good");
@@ -247,9 +247,9 @@ TEST(Safetensors, ASealedFileIsRefusedWhenAnyByteChanged) {
   const auto at = image.find(seal);
   ASSERT_NE(at, std::string::npos);
   image.replace(at, 64, std::string(64, '0'));
-  const fs::path zeroed = scratch("zeroed.bin");
+  const fs::path zeroed = scratch_dir("zeroed.bin");
   std::ofstream(zeroed, std::ios::binary) << image;
-  const fs::path sum = scratch("sum.txt");
+  const fs::path sum = scratch_dir("sum.txt");
   const std::string command = "sha256sum '" + zeroed.string() + "' > '" + sum.string() + "'";
   const ropes::core::ChildResult command_run = ropes::core::run_shell(command);
   ASSERT_EQ(command_run.rc, 0) << command << "\n" << command_run.output;

@@ -21,9 +21,8 @@ namespace {
 
 using Json = nlohmann::json;
 
-[[noreturn]] void fail(const std::string& file, const std::string& what) {
-  throw ConfigError(file + ": " + what);
-}
+using detail::fail;
+using detail::number;
 
 void only_fields(const Json& object, const std::set<std::string>& allowed, const std::string& file,
                  const std::string& where) {
@@ -42,12 +41,6 @@ const Json& required(const Json& object, const char* key, const std::string& fil
   if (!object.contains(key))
     fail(file, where + "lacks the field '" + key + "'");
   return object[key];
-}
-
-double number(const Json& v, const std::string& file, const std::string& field) {
-  if (!v.is_number())
-    fail(file, field + " is " + core::describe(v) + "; expected a number");
-  return v.get<double>();
 }
 
 std::int64_t integer(const Json& v, const std::string& file, const std::string& field,

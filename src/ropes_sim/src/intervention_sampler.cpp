@@ -15,15 +15,8 @@ namespace {
 
 using Json = nlohmann::json;
 
-[[noreturn]] void fail(const std::string& file, const std::string& what) {
-  throw ConfigError(file + ": " + what);
-}
-
-double number(const Json& v, const std::string& file, const std::string& field) {
-  if (!v.is_number())
-    fail(file, field + " is " + std::string(v.type_name()) + "; expected a number");
-  return v.get<double>();
-}
+using detail::fail;
+using detail::number;
 
 // {mean, variance | std, lower, upper}: the paper's TN_[a,b](mu, sigma^2) names a variance
 // (paper line 472), so a distribution file states it as `variance`; `std` is read for users

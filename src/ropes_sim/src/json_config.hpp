@@ -1,5 +1,5 @@
 #pragma once
-// Private to ropes_sim: reading a JSON config file, shared by the config loaders.
+// Private to ropes_sim: reading a JSON config file and its fields, shared by the config loaders.
 
 #include <nlohmann/json.hpp>
 
@@ -13,6 +13,18 @@
 #include "ropes_sim/intervention_sampler.hpp"  // ConfigError
 
 namespace ropes::sim::detail {
+
+// a ConfigError "<file>: <what>"
+[[noreturn]] inline void fail(const std::string& file, const std::string& what) {
+  throw ConfigError(file + ": " + what);
+}
+
+// v as a number; ConfigError naming the file, the field and the value otherwise
+inline double number(const nlohmann::json& v, const std::string& file, const std::string& field) {
+  if (!v.is_number())
+    fail(file, field + " is " + core::describe(v) + "; expected a number");
+  return v.get<double>();
+}
 
 // the JSON object in `path`; ConfigError naming the file when it cannot be opened, is not
 // JSON or is not an object. `what` names the kind of file in the message.

@@ -242,7 +242,7 @@ TEST(InterventionSampler, RefusesBadConfigsNamingTheFieldAndValue) {
       load_error(
           head +
           R"("observational": {"a": {"mean": 0, "variance": "big", "lower": -1, "upper": 1}}, "interventions": {}})")
-          .find("observational.a.variance is string; expected a number"),
+          .find("observational.a.variance is \"big\"; expected a number"),
       std::string::npos);
   EXPECT_NE(load_error(head + R"("observational": {}, "interventions": {}})")
                 .find("joint 'a' is neither held, observational nor a child in the sem"),

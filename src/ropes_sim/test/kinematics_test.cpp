@@ -9,14 +9,14 @@
 #include <vector>
 
 #include "panda_dh.hpp"
+#include "panda_urdfs.hpp"
 #include "ropes_core/philox.hpp"
 
 namespace ropes::sim {
 namespace {
 
-const std::filesystem::path kPandaUrdf = std::filesystem::path(ROPES_SIM_URDF_DIR) / "panda.urdf";
-const std::filesystem::path kPandaGym =
-    std::filesystem::path(ROPES_SHARED_ASSETS) / "franka_panda" / "panda.urdf";
+using test_urdfs::kPandaGym;
+using test_urdfs::kPandaUrdf;
 
 // the witness: test/panda_dh.hpp
 using witness::dh_frames;

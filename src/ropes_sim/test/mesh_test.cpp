@@ -12,7 +12,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-fs::path temp_dir(const std::string& name) {
+fs::path mesh_dir(const std::string& name) {
   const fs::path dir = fs::temp_directory_path() / ("ropes_sim_mesh_" + name);
   fs::remove_all(dir);
   fs::create_directories(dir);
@@ -33,7 +33,7 @@ std::string error_of(const fs::path& path) {
 }
 
 TEST(Mesh, ObjWithMaterialsTextureQuadsAndNegativeIndices) {
-  const fs::path dir = temp_dir("obj");
+  const fs::path dir = mesh_dir("obj");
   cv::Mat texture(2, 2, CV_8UC3, cv::Scalar(0, 0, 255));  // BGR: red
   ASSERT_TRUE(cv::imwrite((dir / "red.png").string(), texture));
   write(dir / "m.mtl", "newmtl grey\nKd 0.5 0.5 0.5\n\nnewmtl tex\nKd 1 1 1\nmap_Kd red.png\n");
@@ -59,7 +59,7 @@ TEST(Mesh, ObjWithMaterialsTextureQuadsAndNegativeIndices) {
 }
 
 TEST(Mesh, MissingMaterialLibraryIsAWarningNotAnError) {
-  const fs::path dir = temp_dir("nomtl");
+  const fs::path dir = mesh_dir("nomtl");
   write(dir / "m.obj", "mtllib gone.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl x\nf 1 2 3\n");
   const Mesh mesh = load_mesh(dir / "m.obj");
   ASSERT_EQ(mesh.warnings.size(), 2u);
@@ -79,7 +79,7 @@ TEST(Mesh, MissingMaterialLibraryIsAWarningNotAnError) {
 // found by fuzz/mesh: a material library or texture whose name the file system refuses
 // (longer than NAME_MAX) threw filesystem_error out of load_mesh; it is a missing file
 TEST(Mesh, AMaterialFileNameTooLongIsAMissingFile) {
-  const fs::path dir = temp_dir("longname");
+  const fs::path dir = mesh_dir("longname");
   const std::string name(300, 'm');
   write(dir / "m.obj", "mtllib " + name + ".mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
   const Mesh mesh = load_mesh(dir / "m.obj");
@@ -93,7 +93,7 @@ TEST(Mesh, AMaterialFileNameTooLongIsAMissingFile) {
 }
 
 TEST(Mesh, BadObjFilesNameTheFileAndLine) {
-  const fs::path dir = temp_dir("bad");
+  const fs::path dir = mesh_dir("bad");
   write(dir / "range.obj", "v 0 0 0\nv 1 0 0\nf 1 2 3\n");
   EXPECT_NE(error_of(dir / "range.obj").find("range.obj:3: vertex index 3 is out of range"),
             std::string::npos)
@@ -110,7 +110,7 @@ TEST(Mesh, BadObjFilesNameTheFileAndLine) {
 }
 
 TEST(Mesh, BinaryAndAsciiStlGiveTheSameTriangles) {
-  const fs::path dir = temp_dir("stl");
+  const fs::path dir = mesh_dir("stl");
   write(dir / "a.stl",
         "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\n"
         "endloop\nendfacet\nendsolid t\n");

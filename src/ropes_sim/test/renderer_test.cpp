@@ -10,6 +10,7 @@
 #include <map>
 #include <thread>
 
+#include "panda_urdfs.hpp"
 #include "ropes_core/philox.hpp"
 #include "ropes_core/sha256.hpp"
 #include "ropes_sim/intervention_sampler.hpp"
@@ -20,8 +21,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const fs::path kPandaUrdf = fs::path(ROPES_SIM_URDF_DIR) / "panda.urdf";
-const fs::path kPandaGym = fs::path(ROPES_SHARED_ASSETS) / "franka_panda" / "panda.urdf";
+using test_urdfs::kPandaGym;
+using test_urdfs::kPandaUrdf;
 const fs::path kGoldenDir = fs::path(ROPES_SIM_TEST_DIR) / "golden";
 
 struct Fixture {

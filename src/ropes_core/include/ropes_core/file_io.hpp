@@ -19,6 +19,11 @@ namespace ropes::core {
 void write_file_atomically(const std::filesystem::path& path, const std::uint8_t* bytes,
                            std::size_t size);
 
+/// The same for a text.
+inline void write_text_file_atomically(const std::filesystem::path& path, const std::string& text) {
+  write_file_atomically(path, reinterpret_cast<const std::uint8_t*>(text.data()), text.size());
+}
+
 /// The limit on a JSON file that configures or records a run (configs, run.json, state and
 /// result files) and on a metrics log, for read_text_file.
 inline constexpr std::uint64_t kMaxJsonFileBytes = std::uint64_t{16} << 20;

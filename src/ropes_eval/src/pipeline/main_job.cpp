@@ -24,11 +24,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-void write_text(const fs::path& path, const std::string& text) {
-  core::write_file_atomically(path, reinterpret_cast<const std::uint8_t*>(text.data()),
-                              text.size());
-}
-
 // OUT/ropes-run.json: {"format": "ropes-run", "identity": {...}, "stages": {...}}
 nlohmann::json read_state(const fs::path& p) {
   if (!fs::exists(p))
@@ -123,7 +118,7 @@ MainJobResult run_main_job(const MainJobOptions& options,
   state["identity"] = identity;
   if (!state.contains("stages"))
     state["stages"] = nlohmann::json::object();
-  auto save = [&] { write_text(r.state_file, state.dump(2) + "\n"); };
+  auto save = [&] { core::write_text_file_atomically(r.state_file, state.dump(2) + "\n"); };
   save();
   // a stage finished: recorded with where its output is and how long it took
   auto record = [&](const char* stage, const fs::path& where, Clock::time_point since,

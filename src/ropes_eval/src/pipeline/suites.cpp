@@ -47,11 +47,6 @@ fs::path default_test_data_cache() {
 
 namespace {
 
-void write_text(const fs::path& path, const std::string& text) {
-  core::write_file_atomically(path, reinterpret_cast<const std::uint8_t*>(text.data()),
-                              text.size());
-}
-
 // run.json's image side and the training set's seed, each checked
 struct RunFacts {
   std::int64_t image_side = 0, cameras = 1;
@@ -304,8 +299,8 @@ SuiteOutcome run_suites(const fs::path& run_dir, const SuiteOptions& args,
   report.paper_table1_occlusion = paper["table1_occlusion"];
   report.paper_robopepp = paper["robopepp"];
   fs::create_directories(report_dir);
-  write_text(report_dir / "results.json", report.to_json().dump(2) + "\n");
-  write_text(report_dir / "results.md", report.markdown());
+  core::write_text_file_atomically(report_dir / "results.json", report.to_json().dump(2) + "\n");
+  core::write_text_file_atomically(report_dir / "results.md", report.markdown());
   // report.html: images from the first suite's test set; the occlusion figure at the middle
   // size asked (the paper's 32 px by default), at most half the image
   std::int64_t figure = 32;
@@ -315,7 +310,8 @@ SuiteOutcome run_suites(const fs::path& run_dir, const SuiteOptions& args,
     figure = std::min(figure, facts.image_side / 2);
   const ReportImages images =
       collect_report_images(run_dir, tests.front().second.dir, figure, options.seed);
-  write_text(report_dir / "report.html", html_report(report, run_dir, images));
+  core::write_text_file_atomically(report_dir / "report.html",
+                                   html_report(report, run_dir, images));
   const SuiteResult* id = report.find("id");
   if (id != nullptr)
     id->evaluation.calibration.write(report_dir / "calibration.json");
