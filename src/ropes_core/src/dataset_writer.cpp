@@ -95,7 +95,7 @@ void write_dataset_shard(const fs::path& dir, int shard, const std::vector<Colum
     record.files.push_back(std::move(f));
   }
   const std::string text = shard_json(record, columns).dump(2) + "\n";
-  write_file_atomically(marker, reinterpret_cast<const std::uint8_t*>(text.data()), text.size());
+  write_text_file_atomically(marker, text);
 }
 
 bool dataset_shard_complete(const fs::path& dir, int shard, const std::vector<ColumnSpec>& columns,
@@ -176,8 +176,7 @@ void write_dataset_manifest(const fs::path& dir, const std::vector<ColumnSpec>& 
   if (!dataset_id.empty())
     out["dataset"] = dataset_id;
   const std::string text = out.dump(2) + "\n";
-  write_file_atomically(dir / "manifest.json", reinterpret_cast<const std::uint8_t*>(text.data()),
-                        text.size());
+  write_text_file_atomically(dir / "manifest.json", text);
 }
 
 }  // namespace ropes::core

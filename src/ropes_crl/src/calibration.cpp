@@ -105,8 +105,7 @@ Calibration Calibration::read(const fs::path& file) {
 
 void Calibration::write(const fs::path& file) const {
   const std::string text = to_json().dump(2) + "\n";
-  core::write_file_atomically(file, reinterpret_cast<const std::uint8_t*>(text.data()),
-                              text.size());
+  core::write_text_file_atomically(file, text);
 }
 
 void Calibration::check_fits(const RunDirectory& r) const {

@@ -16,8 +16,7 @@ namespace ropes::crl::detail {
 
 void write_json_file(const fs::path& path, const nlohmann::json& j) {
   const std::string text = j.dump(2) + "\n";
-  core::write_file_atomically(path, reinterpret_cast<const std::uint8_t*>(text.data()),
-                              text.size());
+  core::write_text_file_atomically(path, text);
 }
 
 std::vector<std::string> MetricsLog::lines() const {
@@ -37,8 +36,7 @@ void MetricsLog::rewrite(const std::vector<std::string>& lines) const {
   std::string text;
   for (const std::string& l : lines)
     text += l + "\n";
-  core::write_file_atomically(path_, reinterpret_cast<const std::uint8_t*>(text.data()),
-                              text.size());
+  core::write_text_file_atomically(path_, text);
 }
 
 void MetricsLog::append(const nlohmann::json& record) const {

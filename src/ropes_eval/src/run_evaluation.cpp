@@ -570,8 +570,7 @@ EvaluationFiles write_evaluation(const RunEvaluation& ev, const fs::path& result
   if (results.has_parent_path())
     fs::create_directories(results.parent_path());
   const auto write_text = [](const fs::path& path, const std::string& text) {
-    core::write_file_atomically(path, reinterpret_cast<const std::uint8_t*>(text.data()),
-                                text.size());
+    core::write_text_file_atomically(path, text);
   };
   write_text(f.results, ev.to_json().dump(2) + "\n");
   write_text(f.markdown, ev.markdown());

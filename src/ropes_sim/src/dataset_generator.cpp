@@ -220,8 +220,7 @@ bool prepare_directory(const fs::path& dir, const std::string& metadata) {
   }
   fs::create_directories(dir);
   const std::string text = ours.dump(2) + "\n";
-  core::write_file_atomically(generation, reinterpret_cast<const std::uint8_t*>(text.data()),
-                              text.size());
+  core::write_text_file_atomically(generation, text);
   return false;
 }
 
