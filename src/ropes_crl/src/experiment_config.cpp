@@ -226,10 +226,10 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
 
     // LDR
     const nlohmann::json& l = field(j, "config", "ldr");
-    reject_unknown_keys(
-        l, "config.ldr",
-        {"widths", "hidden", "batch_size", "max_epochs", "patience", "held_out_fraction",
-         "optimizer", "input_normalization", "pair_loss", "members", "weight_average"});
+    reject_unknown_keys(l, "config.ldr",
+                        {"widths", "hidden", "batch_size", "max_epochs", "patience",
+                         "held_out_fraction", "optimizer", "input_normalization", "pair_loss",
+                         "members", "weight_average", "all_regimes"});
     c.ldr.in_channels = c.code_channels();
     c.ldr.input_size = side;
     c.ldr.widths = get_ints(l, "config.ldr", "widths");
@@ -265,6 +265,19 @@ ExperimentConfig ExperimentConfig::from_json(const nlohmann::json& j, const std:
       if (!(decay > 0 && decay < 1))
         throw std::invalid_argument(at + ".decay: expected in (0, 1), got " + number_text(decay));
       c.ldr_training.weight_average.decay = decay;
+    }
+    if (l.contains("all_regimes")) {  // optional, an extension: off when absent
+      const std::string at = "config.ldr.all_regimes";
+      const nlohmann::json& o =
+          optional_object(l, "config.ldr", "all_regimes", "{\"observational\"}", {"observational"});
+      c.ldr_training.all_regimes.on = true;
+      if (o.contains("observational"))
+        c.ldr_training.all_regimes.observational = get_bool(o, at, "observational");
+      if (c.ldr.members > 1)
+        throw std::invalid_argument(at +
+                                    ": one classifier over every regime, not with "
+                                    "config.ldr.members " +
+                                    std::to_string(c.ldr.members) + " (expected 1 or absent)");
     }
 
     // AE2

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <stdexcept>
 
 #include "json_fields.hpp"
@@ -369,6 +370,89 @@ void Ldr::set_input_map(const CodeStandardization& fitted) {
 
 std::vector<std::pair<std::string, Tensor>> Ldr::trained_parameters() const {
   return without_input_map(named_parameters());
+}
+
+// --- one classifier over every regime (ldr.all_regimes) ------------------------------------
+RegimeClassifier::RegimeClassifier(const LdrSpec& spec, std::int64_t regimes)
+    : spec_(spec), regimes_(regimes) {
+  if (const std::string p = spec.problem(); !p.empty())
+    throw std::invalid_argument("RegimeClassifier: " + p);
+  if (spec.members != 1)
+    throw std::invalid_argument("RegimeClassifier: ldr.members is " + std::to_string(spec.members) +
+                                "; expected 1");
+  if (regimes < 2)
+    throw std::invalid_argument("RegimeClassifier: " + std::to_string(regimes) +
+                                " regimes; expected at least 2");
+  std::int64_t c = spec.in_channels, side = spec.input_size;
+  if (spec.input_normalization == "standardize")
+    input_ = register_module("input", std::make_shared<CodeStandardization>(c, side));
+  features_ = register_module("features", std::make_shared<Sequential>());
+  for (std::int64_t w : spec.widths) {
+    features_->add(std::make_shared<Conv2d>(c, w, 3, 1, Padding2d::valid()));
+    features_->add(std::make_shared<nn::ReLU>());
+    c = w;
+    side -= 2;
+  }
+  hidden_ = register_module("hidden", std::make_shared<Dense>(c * side * side, spec.hidden));
+  out_ = register_module("out", std::make_shared<Dense>(spec.hidden, regimes));
+}
+
+Tensor RegimeClassifier::forward(const Tensor& y) {
+  const Tensor x = input_ ? (*input_)(y) : y;
+  return (*out_)(nn::relu((*hidden_)(nn::flatten((*features_)(x)))));
+}
+
+void RegimeClassifier::set_input_map(const CodeStandardization& fitted) {
+  copy_input_map(input_.get(), "RegimeClassifier", "ldr.input_normalization",
+                 spec_.input_normalization, fitted);
+}
+
+std::vector<std::pair<std::string, Tensor>> RegimeClassifier::trained_parameters() const {
+  return without_input_map(named_parameters());
+}
+
+void RegimeClassifier::write_ratio(std::int64_t positive, std::int64_t negative, Ldr& ldr) const {
+  for (const std::int64_t r : {positive, negative})
+    if (r < 0 || r >= regimes_)
+      throw std::invalid_argument("RegimeClassifier::write_ratio: regime " + std::to_string(r) +
+                                  " of " + std::to_string(regimes_));
+  if (ldr.spec().to_json() != spec_.to_json())
+    throw std::invalid_argument("RegimeClassifier::write_ratio: the Ldr's spec " +
+                                ldr.spec().to_json().dump() + " is not the classifier's " +
+                                spec_.to_json().dump());
+  std::map<std::string, Tensor> mine;
+  for (const auto& [name, w] : named_parameters())
+    mine[name] = w;
+  const std::int64_t h = spec_.hidden;
+  for (auto [name, w] : ldr.named_parameters()) {
+    float* to = w.mutable_data();
+    const float* from = mine.at(name).data();
+    if (name == "out.weight") {  // [hidden, 1] <- column positive - column negative of [hidden, R]
+      for (std::int64_t i = 0; i < h; ++i)
+        to[i] = from[i * regimes_ + positive] - from[i * regimes_ + negative];
+    } else if (name == "out.bias") {
+      to[0] = from[positive] - from[negative];
+    } else {
+      std::copy(from, from + w.numel(), to);
+    }
+    ldr.mark_initialized(name);
+  }
+}
+
+Tensor softmax_cross_entropy(const Tensor& outputs, const Tensor& one_hot) {
+  if (outputs.rank() != 2 || one_hot.shape() != outputs.shape())
+    throw std::invalid_argument("softmax_cross_entropy: outputs " + outputs.shape().str() +
+                                " and one-hot rows " + one_hot.shape().str() +
+                                "; expected two [N, R] of one shape");
+  const std::int64_t n = outputs.shape()[0], r = outputs.shape()[1];
+  std::vector<float> top(static_cast<std::size_t>(n));
+  const float* f = outputs.data();
+  for (std::int64_t i = 0; i < n; ++i)
+    top[static_cast<std::size_t>(i)] = *std::max_element(f + i * r, f + (i + 1) * r);
+  const Tensor m(nn::Shape{n, 1}, top);  // a constant: the result does not depend on it
+  const Tensor lse = nn::add(nn::log(nn::sum(nn::exp(nn::sub(outputs, m)), {1}, true)), m);
+  const Tensor picked = nn::sum(nn::mul(outputs, one_hot), {1}, true);
+  return nn::reshape(nn::sub(lse, picked), nn::Shape{n});
 }
 
 // --- AE2 ------------------------------------------------------------------------------------

@@ -68,6 +68,12 @@ LdrOutcome train_ldr(const ExperimentConfig& config, const TrainingData& data,
                      const TrainOptions& options, const MetricsLog& metrics,
                      const fs::path& weights, bool bar);
 
+// ldr.all_regimes: one classifier over every regime, trained once; each joint's LDR saved to
+// ldr_file(run_dir, joint) as a plain classifier. The outcomes in data.joints order.
+std::vector<LdrOutcome> train_ldrs_all_regimes(
+    const ExperimentConfig& config, const TrainingData& data, const CodeStandardization* codes_map,
+    const TrainOptions& options, const MetricsLog& metrics, const fs::path& run_dir, bool bar);
+
 struct Ae2Model {
   std::string name;                ///< file stem: a joint's name, "joint" or "lambda0"
   std::vector<std::size_t> terms;  ///< indices into config.joints (= target latents)

@@ -90,7 +90,24 @@ void train(const ExperimentConfig& config_in, const fs::path& data_dir, const fs
                    "the standardised codes of " + codes_file(run_dir).string());
   }
 
-  // stage 2: one LDR per joint
+  // stage 2: one LDR per joint; with ldr.all_regimes one classifier for all, trained again
+  // unless every joint's LDR is there (each file is written whole, the last one last)
+  bool all_ldrs = true;
+  for (const JointRegimes& joint : data.joints)
+    all_ldrs = all_ldrs && fs::exists(ldr_file(run_dir, joint.name));
+  if (config.ldr_training.all_regimes.on && !all_ldrs) {
+    metrics.truncate([](const nlohmann::json& r) { return r.value("stage", "") != "ldr"; });
+    const Clock::time_point t0 = Clock::now();
+    const std::vector<LdrOutcome> outcomes = train_ldrs_all_regimes(
+        config, data, codes_map.get(), options, metrics, run_dir, options.progress_bar);
+    add_stage_time(run, "ldr", seconds_since(t0));
+    for (std::size_t j = 0; j < data.joints.size(); ++j)
+      run["ldr"][data.joints[j].name] = {{"held_out_loss", outcomes[j].loss},
+                                         {"held_out_accuracy", outcomes[j].accuracy},
+                                         {"bayes_accuracy", data.joints[j].bayes_accuracy},
+                                         {"epochs", outcomes[j].epochs}};
+    write_json_file(run_json, run);
+  }
   for (const JointRegimes& joint : data.joints) {
     const fs::path weights = ldr_file(run_dir, joint.name);
     if (fs::exists(weights))

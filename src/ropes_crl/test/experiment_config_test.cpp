@@ -212,6 +212,30 @@ TEST(ExperimentConfig, ErrorsNameTheFileTheFieldAndTheValue) {
   EXPECT_DOUBLE_EQ(ExperimentConfig::from_json(j, "test.json").ldr_training.weight_average.decay,
                    0.99);
   EXPECT_DOUBLE_EQ(c.ldr_training.weight_average.decay, 0.0) << "off when absent";
+  // one classifier over every regime (an extension, off when absent): {"observational": bool}
+  j = c.raw;
+  j["ldr"]["all_regimes"] = true;
+  EXPECT_NE(error_of(j).find("config.ldr.all_regimes: expected an object {\"observational\"}, "
+                             "got a boolean"),
+            std::string::npos)
+      << error_of(j);
+  j["ldr"]["all_regimes"] = {{"observational", "yes"}};
+  EXPECT_NE(error_of(j).find("config.ldr.all_regimes.observational: expected true or false, got "
+                             "\"yes\""),
+            std::string::npos)
+      << error_of(j);
+  j["ldr"]["all_regimes"] = nlohmann::json::object();
+  j["ldr"]["members"] = 3;
+  EXPECT_NE(error_of(j).find("config.ldr.all_regimes: one classifier over every regime, not with "
+                             "config.ldr.members 3"),
+            std::string::npos)
+      << error_of(j);
+  j["ldr"].erase("members");
+  EXPECT_TRUE(ExperimentConfig::from_json(j, "test.json").ldr_training.all_regimes.on);
+  EXPECT_TRUE(ExperimentConfig::from_json(j, "test.json").ldr_training.all_regimes.observational);
+  j["ldr"]["all_regimes"] = {{"observational", false}};
+  EXPECT_FALSE(ExperimentConfig::from_json(j, "test.json").ldr_training.all_regimes.observational);
+  EXPECT_FALSE(c.ldr_training.all_regimes.on) << "off when absent";
   // AE2's logit term (an extension, off when absent): {"weight" > 0}
   j = c.raw;
   j["ae2"]["logit_loss"] = {{"weight", -1}};

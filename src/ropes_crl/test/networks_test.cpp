@@ -403,3 +403,84 @@ TEST(Networks, AnLdrEnsembleIsTheMeanOfItsMembers) {
     EXPECT_THROW(Ldr{b}, std::invalid_argument);
   }
 }
+
+// ldr.all_regimes: the LDR written from one classifier over R regimes is output p minus output
+// n, and its input gradient (the score difference) is theirs; the witness is the classifier's
+// own outputs and gradients, taken apart
+TEST(Networks, ARegimeClassifiersRatioIsTheDifferenceOfTwoOutputs) {
+  LdrSpec s;
+  s.in_channels = 2;
+  RegimeClassifier all(s, 5);
+  all.initialize(11);
+  Tensor y = ramp(Shape{4, 2, 8, 8});
+  y.set_requires_grad(true);
+  const Tensor f = all(y);
+  ASSERT_EQ(f.shape(), (Shape{4, 5}));
+  for (const auto& [p, n] :
+       std::vector<std::pair<std::int64_t, std::int64_t>>{{1, 0}, {3, 2}, {0, 4}}) {
+    Ldr ldr(s);
+    all.write_ratio(p, n, ldr);
+    Tensor x = ramp(Shape{4, 2, 8, 8});
+    x.set_requires_grad(true);
+    const Tensor logit = ldr(x);
+    const std::vector<float> fv = f.to_vector(), lv = logit.to_vector();
+    for (std::size_t i = 0; i < 4; ++i)
+      EXPECT_NEAR(lv[i],
+                  fv[i * 5 + static_cast<std::size_t>(p)] - fv[i * 5 + static_cast<std::size_t>(n)],
+                  1e-5)
+          << p << " - " << n << ", sample " << i;
+    const Tensor fp = ropes::nn::slice(f, 1, p, p + 1), fn = ropes::nn::slice(f, 1, n, n + 1);
+    const std::vector<float> gp = ropes::nn::grad({ropes::nn::sum(fp)}, {y})[0].to_vector();
+    const std::vector<float> gn = ropes::nn::grad({ropes::nn::sum(fn)}, {y})[0].to_vector();
+    const std::vector<float> g = ropes::nn::grad({ropes::nn::sum(logit)}, {x})[0].to_vector();
+    for (std::size_t i = 0; i < g.size(); ++i)
+      EXPECT_NEAR(g[i], gp[i] - gn[i], 1e-5) << i;
+  }
+  Ldr ldr(s);
+  EXPECT_THROW(all.write_ratio(5, 0, ldr), std::invalid_argument);
+  EXPECT_THROW(all.write_ratio(1, -1, ldr), std::invalid_argument);
+  LdrSpec other = s;
+  other.hidden = 64;
+  Ldr wrong(other);
+  EXPECT_THROW(all.write_ratio(1, 0, wrong), std::invalid_argument);
+  EXPECT_THROW(RegimeClassifier(s, 1), std::invalid_argument);
+  LdrSpec ensemble = s;
+  ensemble.members = 2;
+  EXPECT_THROW(RegimeClassifier(ensemble, 3), std::invalid_argument);
+}
+
+// the cross-entropy against the formula in double, and its gradient against central finite
+// differences of that formula; outputs near 90 would overflow exp in float without the row
+// maximum taken out
+TEST(Networks, SoftmaxCrossEntropyIsTheFormulaAndItsGradientTheFiniteDifferences) {
+  const std::vector<float> f = {0.3f, -1.2f, 2.0f, 90.0f, 89.5f, 70.0f, -3.0f, 0.0f, 0.5f};
+  const std::vector<int> cls = {2, 1, 0};
+  std::vector<float> t(9, 0.0f);
+  for (std::size_t i = 0; i < 3; ++i)
+    t[i * 3 + static_cast<std::size_t>(cls[i])] = 1.0f;
+  const auto formula = [&](const std::vector<double>& x, std::size_t i) {
+    double m = -INFINITY, s = 0;
+    for (std::size_t j = 0; j < 3; ++j)
+      m = std::max(m, x[i * 3 + j]);
+    for (std::size_t j = 0; j < 3; ++j)
+      s += std::exp(x[i * 3 + j] - m);
+    return m + std::log(s) - x[i * 3 + static_cast<std::size_t>(cls[i])];
+  };
+  Tensor out(Shape{3, 3}, f);
+  out.set_requires_grad(true);
+  const Tensor ce = softmax_cross_entropy(out, Tensor(Shape{3, 3}, t));
+  ASSERT_EQ(ce.shape(), (Shape{3}));
+  const std::vector<double> x(f.begin(), f.end());
+  for (std::size_t i = 0; i < 3; ++i)
+    EXPECT_NEAR(ce.to_vector()[i], formula(x, i), 1e-5) << i;
+  const std::vector<float> g = ropes::nn::grad({ropes::nn::sum(ce)}, {out})[0].to_vector();
+  for (std::size_t e = 0; e < 9; ++e) {
+    std::vector<double> up = x, down = x;
+    up[e] += 1e-4;
+    down[e] -= 1e-4;
+    const double fd = (formula(up, e / 3) - formula(down, e / 3)) / 2e-4;
+    EXPECT_NEAR(g[e], fd, 1e-4) << e;
+  }
+  EXPECT_THROW(softmax_cross_entropy(out, Tensor(Shape{3, 2}, std::vector<float>(6, 0.0f))),
+               std::invalid_argument);
+}

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <stdexcept>
 
 #include "ropes_crl/networks.hpp"
@@ -143,6 +144,86 @@ TEST_F(TrainerLdr, TheWeightAverageIsSavedAndStartsFromTheInitialWeights) {
     EXPECT_LT(worst, 1e-5) << joint;
     EXPECT_GT(moved, 1e-4) << joint << ": the average saved the trained weights";
   }
+}
+
+// ldr.all_regimes: one classifier over the dataset's five regimes (the observational one and
+// each joint's two interventions); each joint's LDR file holds its trunk and the difference of
+// its two output columns (Networks.ARegimeClassifiersRatioIsTheDifferenceOfTwoOutputs checks
+// that difference), and run.json and metrics.jsonl record each joint as before
+TEST_F(TrainerLdr, OneClassifierOverEveryRegimeWritesEachJointsLdr) {
+  config_.ldr_training.all_regimes.on = true;
+  const fs::path run = train_to("run", 2, options_);
+  Ldr a(config_.ldr), b(config_.ldr);
+  nn::load_module(a, run / "ldr.a.safetensors");
+  nn::load_module(b, run / "ldr.b.safetensors");
+  const auto pa = a.named_parameters(), pb = b.named_parameters();
+  ASSERT_EQ(pa.size(), pb.size());
+  for (std::size_t i = 0; i < pa.size(); ++i) {
+    if (pa[i].first.rfind("out.", 0) == 0)
+      EXPECT_NE(pa[i].second.to_vector(), pb[i].second.to_vector()) << pa[i].first;
+    else
+      EXPECT_EQ(pa[i].second.to_vector(), pb[i].second.to_vector())
+          << pa[i].first << ": the joints' LDRs do not share the trunk";
+  }
+  const RunDirectory r = RunDirectory::open(run);
+  for (const char* joint : kJoints) {
+    const std::optional<LdrRecord> l = r.ldr(joint);
+    ASSERT_TRUE(l.has_value()) << joint;
+    EXPECT_GE(l->held_out_accuracy, 0.0);
+    EXPECT_LE(l->held_out_accuracy, 1.0);
+    EXPECT_GT(l->bayes_accuracy, 0.7) << joint;
+    EXPECT_GE(l->epochs, 1);
+    EXPECT_LE(l->epochs, 2);
+  }
+  std::map<std::string, std::size_t> per;
+  for (const nlohmann::json& rec : records(run, "ldr"))
+    ++per[rec["joint"].get<std::string>()];
+  EXPECT_EQ(per["all_regimes"], 2u);  // an epoch a record
+  EXPECT_EQ(per[kJoints[0]], 2u);
+  EXPECT_EQ(per[kJoints[1]], 2u);
+  // a plain run's LDRs differ: the option is not ignored
+  config_.ldr_training.all_regimes.on = false;
+  const fs::path plain = train_to("plain", 2, options_);
+  EXPECT_NE(file_bytes(plain / "ldr.a.safetensors"), file_bytes(run / "ldr.a.safetensors"));
+}
+
+// a stop inside the stage trains the classifier again from its start, to the bytes and the
+// records of a run never stopped
+TEST_F(TrainerLdr, AStopInsideTheAllRegimesStageResumesToTheSameBytes) {
+  config_.ldr_training.all_regimes.on = true;
+  config_.ldr_training.pair_loss.weight = 1.0;
+  const fs::path whole = train_to("whole", 2, options_);
+  TrainOptions stopping = options_;
+  stopping.on_metrics = [](const nlohmann::json& rec) {
+    if (rec.value("joint", "") == "all_regimes" && rec.value("epoch", 0) == 2)
+      throw std::runtime_error("stopped in the second epoch");
+  };
+  EXPECT_THROW(train_to("stopped", 2, stopping), std::runtime_error);
+  const fs::path run = dir_ / "stopped";
+  EXPECT_FALSE(fs::exists(run / "ldr.a.safetensors"));
+  train_to("stopped", 2, options_);
+  for (const char* f : {"ldr.a.safetensors", "ldr.b.safetensors"})
+    EXPECT_EQ(file_bytes(run / f), file_bytes(whole / f)) << f << " differs after the resume";
+  EXPECT_EQ(records(run, "ldr").size(), records(whole, "ldr").size());
+}
+
+// label-free: on a dataset whose angles are noise, with the pair loss and the weight average
+// too, the same bytes
+TEST_F(TrainerLdr, OneClassifierOverEveryRegimeReadsNoAngle) {
+  const fs::path noise = dir_ / "noise";
+  write_two_bar_dataset(noise, config_.cameras, config_.image_size, true, true);
+  ASSERT_NE(file_bytes(noise / "shards" / "angles-00000.npy"),
+            file_bytes(data() / "shards" / "angles-00000.npy"));
+  config_.ldr_training.all_regimes.on = true;
+  config_.ldr_training.pair_loss.weight = 1.0;
+  config_.ldr_training.weight_average.decay = 0.9;
+  const fs::path run = train_to("run", 2, options_);
+  TrainOptions o = options_;
+  o.last_stage = 2;
+  train(config_, noise, dir_ / "noise_run", o);
+  for (const char* f : {"ldr.a.safetensors", "ldr.b.safetensors"})
+    EXPECT_EQ(file_bytes(dir_ / "noise_run" / f), file_bytes(run / f))
+        << f << ": the angles reached the training";
 }
 
 }  // namespace

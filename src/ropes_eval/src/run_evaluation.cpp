@@ -181,6 +181,13 @@ void describe_run(RunEvaluation& ev, const crl::RunDirectory& run,
     ev.extensions.push_back("ldr.members: each joint's LDR an ensemble of " + std::to_string(k) +
                             " classifiers, each trained on its own loss from its own start, the "
                             "logit and the score difference their means");
+  if (const crl::LdrAllRegimes& a = config.ldr_training.all_regimes; a.on)
+    ev.extensions.push_back(
+        std::string("ldr.all_regimes: one classifier over every regime (each joint's two "
+                    "interventions") +
+        (a.observational ? " and the observational samples" : "") +
+        ") trained by softmax cross-entropy; each joint's LDR the difference of its two "
+        "outputs (regimes only, no angle)");
   if (const double d = config.ldr_training.weight_average.decay; d > 0)
     ev.extensions.push_back(
         "ldr.weight_average: each LDR evaluated, early-stopped and saved as the "

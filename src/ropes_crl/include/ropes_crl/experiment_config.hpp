@@ -123,6 +123,29 @@ struct LdrWeightAverage {
   double decay = 0;  ///< 0: off
 };
 
+/// An extension of the LDRs' training, not the paper's method: one classifier over every
+/// regime instead of one a joint. A network of the LDR's architecture with one output a
+/// regime (each joint's two interventions, and with `observational` the observational
+/// samples) learns the regime of each training sample by softmax cross-entropy. With the
+/// regimes equally frequent its outputs estimate log p_r(y) up to one function of y, so
+/// LDR_k = f_{k,2} - f_{k,1} estimates log p_{k,2}(y)/p_{k,1}(y), the quantity the paper's
+/// per-joint classifier estimates, and its input gradient the same score difference. The
+/// trunk learns from every sample, where a per-joint classifier sees 2 of a setting's 13
+/// regimes: a joint whose interventions move few pixels (2C joint 5) borrows the features the
+/// others teach. Each joint's LDR is saved as a plain classifier (the shared trunk, and the
+/// difference of its two columns of the output layer), so nothing downstream changes. Each
+/// joint's LDR is kept at the epoch of its own lowest held-out loss (its two interventions'
+/// binary cross-entropy, as a per-joint classifier's early stopping); the stage stops when no
+/// joint's has fallen for `patience` epochs. With ldr.pair_loss each joint's pairs add their
+/// term on LDR_k; ldr.weight_average averages the one network. Regimes and anchors only, no
+/// angle. The config's optional
+/// ldr.all_regimes {"observational": bool (default true)}; off when absent. Not with
+/// ldr.members > 1.
+struct LdrAllRegimes {
+  bool on = false;
+  bool observational = true;  ///< the observational samples are a class too
+};
+
 /// Stage 2: one LDR per intervened joint, intervention 1 (label 0) against 2 (label 1),
 /// early stopping on the held-out anchors.
 struct LdrTraining {
@@ -133,6 +156,7 @@ struct LdrTraining {
   OptimizerConfig optimizer;
   LdrPairLoss pair_loss;
   LdrWeightAverage weight_average;
+  LdrAllRegimes all_regimes;
 };
 
 /// Stage 3: AE2, reconstruction + lambda * sparsity.

@@ -158,6 +158,42 @@ class Ldr : public nn::Module {
   std::vector<Member> members_;
 };
 
+/// ldr.all_regimes (an extension, not in the paper): one classifier over R regimes, the
+/// LDR's architecture (its parameter names, its input map) with R outputs instead of one.
+/// Trained by softmax cross-entropy on the regimes, output r estimates log p_r(y) up to one
+/// function of y, so the difference of two outputs estimates the log density ratio of their
+/// regimes. spec.members must be 1.
+class RegimeClassifier : public nn::Module {
+ public:
+  RegimeClassifier(const LdrSpec& spec, std::int64_t regimes);
+  std::int64_t regimes() const { return regimes_; }
+  /// As Ldr::set_input_map.
+  void set_input_map(const CodeStandardization& fitted);
+  /// The parameters an optimiser trains: every parameter but the input map's.
+  std::vector<std::pair<std::string, Tensor>> trained_parameters() const;
+  /// Writes into `ldr` (a one-member Ldr of the same spec) the classifier whose logit is
+  /// output `positive` minus output `negative`: the same input map and trunk, and the
+  /// difference of the two columns of the output layer. std::invalid_argument for a regime
+  /// out of range or another spec.
+  void write_ratio(std::int64_t positive, std::int64_t negative, Ldr& ldr) const;
+
+ protected:
+  /// y [N, C, 8, 8] -> one output a regime [N, R]
+  Tensor forward(const Tensor& y) override;
+
+ private:
+  LdrSpec spec_;
+  std::int64_t regimes_;
+  std::shared_ptr<CodeStandardization> input_;
+  std::shared_ptr<nn::Sequential> features_;
+  std::shared_ptr<nn::Dense> hidden_, out_;
+};
+
+/// Per-sample softmax cross-entropy, log sum_j exp(f_ij) - sum_j t_ij f_ij, of outputs f [N, R]
+/// against one-hot rows t [N, R]: [N]. Differentiable in f; each row's maximum is taken out
+/// before exp, so large outputs do not overflow.
+Tensor softmax_cross_entropy(const Tensor& outputs, const Tensor& one_hot);
+
 /// AE2, the disentangling autoencoder on the codes Y.
 ///   kind "conv" (the paper): per stage Conv3x3(c -> widths[s]), blocks x ResBlockGN,
 ///     Conv3x3 stride 2, ReLU (8 -> 4 -> 2 -> 1); Dense(widths.back() -> d); decoder
